@@ -1,0 +1,4 @@
+//! `brainshift`: the command-line program.
+fn main() {
+    println!("brainshift");
+}

@@ -1,0 +1,30 @@
+//! Meshes for brainshift.
+//!
+//! * [`Mesh`]: a volume mesh of linear tetrahedra (T4) and 8-node hexahedra (H8), mixed
+//!   allowed, with named node and element sets. Coordinates are plain `f64`; the length unit
+//!   is carried by the caller (a scene file states it), never assumed here.
+//! * [`TriSurface`]: a triangle surface with the topology contact needs
+//!   ([`SurfaceTopology`]: node→faces, edges with their faces, normals, closedness,
+//!   manifoldness and orientation checks).
+//! * [`BoundarySurface`]: the outward-oriented boundary of a volume mesh with the map back to
+//!   volume node indices.
+//! * [`validate`](Mesh::validate): typed [`MeshError`]s for inverted or degenerate elements,
+//!   out-of-range or duplicate nodes, unused nodes.
+//! * [`io`]: readers and writers for Abaqus `.inp`, Gmsh `.msh` (2.2 and 4.1 ASCII), VTK
+//!   legacy, VTU, STL, OBJ and OFF. Every parse error names the file and line (or byte
+//!   offset) and what was expected.
+//!
+//! Architecture invariant: this crate knows nothing about materials, solvers or contact.
+
+mod boundary;
+pub mod io;
+mod mesh;
+pub mod quality;
+mod surface;
+mod validate;
+
+pub use boundary::BoundarySurface;
+pub use mesh::{Element, ElementKind, Mesh};
+pub use nalgebra::{Point3, Vector3};
+pub use surface::TriSurface;
+pub use validate::{MeshError, ValidationReport};

@@ -1,0 +1,141 @@
+//! The layering rules of the workspace, checked against `cargo metadata`.
+//!
+//! The table below is the single source of truth for which workspace crate may depend on
+//! which (normal, dev and build dependencies alike). A crate missing from the table, or an
+//! edge not allowed by it, fails the check with a message naming the edge and the rule.
+
+use std::process::Command;
+
+use serde_json::Value;
+
+/// Workspace crates and the workspace crates each may depend on.
+pub const ALLOWED: &[(&str, &[&str])] = &[
+    ("bs-mesh", &[]),
+    ("bs-material", &[]),
+    ("bs-contact", &["bs-mesh"]),
+    ("bs-dr", &["bs-mesh", "bs-material"]),
+    ("bs-cli", &["bs-mesh", "bs-material", "bs-dr", "bs-contact"]),
+    ("xtask", &["bs-mesh", "bs-material", "bs-dr", "bs-contact"]),
+];
+
+/// Why an edge is forbidden, for the error message.
+fn rule_for(from: &str, to: &str) -> &'static str {
+    match (from, to) {
+        ("bs-dr", "bs-contact") | ("bs-contact", "bs-dr") => {
+            "the solver and the contact handlers must stay swappable: bs-dr owns the contact \
+             trait and bs-cli adapts bs-contact to it"
+        }
+        ("bs-material", _) => "materials know no meshes, elements or solvers",
+        ("bs-mesh", _) => "bs-mesh is the bottom layer and depends on no other brainshift crate",
+        _ => "only bs-cli (and xtask) compose the layers",
+    }
+}
+
+/// Runs `cargo metadata` on the workspace and checks it. Returns the number of
+/// workspace-internal edges.
+pub fn check_workspace() -> Result<usize, String> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let out = Command::new(cargo)
+        .args(["metadata", "--format-version", "1", "--no-deps", "--offline"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .map_err(|e| format!("could not run cargo metadata: {e}"))?;
+    if !out.status.success() {
+        return Err(format!("cargo metadata failed:\n{}", String::from_utf8_lossy(&out.stderr)));
+    }
+    let metadata: Value =
+        serde_json::from_slice(&out.stdout).map_err(|e| format!("cargo metadata output: {e}"))?;
+    check(&metadata)
+}
+
+/// Checks parsed `cargo metadata --no-deps` output against [`ALLOWED`].
+pub fn check(metadata: &Value) -> Result<usize, String> {
+    let packages = metadata["packages"].as_array().ok_or("cargo metadata: no packages array")?;
+    let members: Vec<&str> = packages.iter().filter_map(|p| p["name"].as_str()).collect();
+    let mut problems = Vec::new();
+    let mut edges = 0;
+    for p in packages {
+        let name = p["name"].as_str().unwrap_or("?");
+        let Some((_, allowed)) = ALLOWED.iter().find(|(n, _)| *n == name) else {
+            problems.push(format!(
+                "crate '{name}' is not in the layering table of xtask/src/deps.rs: add it with the \
+                 crates it may depend on, and a paragraph in docs/ARCHITECTURE.md"
+            ));
+            continue;
+        };
+        for d in p["dependencies"].as_array().into_iter().flatten() {
+            let Some(dep) = d["name"].as_str() else { continue };
+            if !members.contains(&dep) {
+                continue;
+            }
+            edges += 1;
+            if !allowed.contains(&dep) {
+                let kind = d["kind"].as_str().unwrap_or("normal");
+                problems.push(format!(
+                    "forbidden dependency {name} -> {dep} ({kind}): {}",
+                    rule_for(name, dep)
+                ));
+            }
+        }
+    }
+    if problems.is_empty() { Ok(edges) } else { Err(problems.join("\n")) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn workspace_graph_follows_the_layering_rules() {
+        let edges = check_workspace().unwrap_or_else(|e| panic!("{e}"));
+        // bs-contact -> bs-mesh, bs-dr -> {bs-mesh, bs-material}, bs-cli -> 4 crates.
+        assert!(edges >= 7, "expected at least the 7 layering edges, found {edges}");
+    }
+
+    fn package(name: &str, deps: &[&str]) -> Value {
+        json!({
+            "name": name,
+            "dependencies": deps.iter().map(|d| json!({"name": d, "kind": null})).collect::<Vec<_>>(),
+        })
+    }
+
+    fn workspace_with(extra: (&str, &str)) -> Value {
+        let mut pkgs = Vec::new();
+        for (name, allowed) in ALLOWED {
+            let mut deps: Vec<&str> = allowed.to_vec();
+            if *name == extra.0 {
+                deps.push(extra.1);
+            }
+            pkgs.push(package(name, &deps));
+        }
+        json!({ "packages": pkgs })
+    }
+
+    #[test]
+    fn solver_depending_on_contact_is_rejected() {
+        let err = check(&workspace_with(("bs-dr", "bs-contact"))).unwrap_err();
+        assert!(err.contains("forbidden dependency bs-dr -> bs-contact"), "{err}");
+    }
+
+    #[test]
+    fn material_depending_on_mesh_is_rejected() {
+        let err = check(&workspace_with(("bs-material", "bs-mesh"))).unwrap_err();
+        assert!(err.contains("bs-material -> bs-mesh"), "{err}");
+    }
+
+    #[test]
+    fn unknown_crate_must_be_added_to_the_table() {
+        let mut ws = workspace_with(("bs-mesh", "serde"));
+        ws["packages"].as_array_mut().unwrap().push(package("bs-new", &["bs-mesh"]));
+        let err = check(&ws).unwrap_err();
+        assert!(err.contains("'bs-new' is not in the layering table"), "{err}");
+    }
+
+    #[test]
+    fn allowed_table_passes() {
+        // Every allowed edge present, nothing else: 0 problems, edge count = table size.
+        let expected: usize = ALLOWED.iter().map(|(_, a)| a.len()).sum();
+        assert_eq!(check(&workspace_with(("bs-mesh", "serde"))), Ok(expected));
+    }
+}
