@@ -269,7 +269,13 @@ fn hex_mean_gradients(x: &[Point3<f64>; 8]) -> (f64, [[f64; 3]; 8], f64) {
 /// ξη, ηζ, ζξ, ξηζ at the nodes), the orthogonalised vectors
 /// `γ_α = Γ_α − Σ_i (Γ_α · X_i) B̄_i` (X_i, B̄_i: nodal vectors of coordinate i and mean
 /// gradient component i) annihilate every linear displacement field; the matrix is
-/// `K_hg = k Σ_α γ_α γ_αᵀ` with `k = κ_hg (λ + 2μ) V (B̄:B̄) / 3`.
+/// `K_hg = k Σ_α γ_α γ_αᵀ` with `k = κ_hg · 2μ · V (B̄:B̄) / 3`.
+///
+/// Flanagan & Belytschko scale with the P-wave modulus `λ + 2μ`; for nearly incompressible
+/// tissue (ν = 0.49–0.499) that makes the hourglass modes as stiff as the bulk and locks the
+/// element (measured: 9× the T4ANP indentation force at ν = 0.499). Hourglass modes are
+/// isochoric to first order, so the shear modulus is the physical scale: we use `2μ`, which
+/// equals FB's `λ + 2μ` at ν = 0 and is softer above.
 fn hourglass_matrix(
     x: &[Point3<f64>; 8],
     g: &[[f64; 3]; 8],
@@ -298,7 +304,7 @@ fn hourglass_matrix(
         }
     }
     let bb: f64 = g.iter().map(|r| r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sum();
-    let k = kappa_hg * el.p_wave_modulus() * vol * bb / 3.0;
+    let k = kappa_hg * 2.0 * el.mu * vol * bb / 3.0;
     let mut hg = [[0.0; 8]; 8];
     for gamma in &gammas {
         for a in 0..8 {

@@ -316,7 +316,7 @@ impl Solver for Newton {
                     }
                     if model.internal_forces_into(&trial, &mut ws, &mut forces).is_ok() {
                         let rn = residual_norm(&forces);
-                        if rn <= ref_norm || alpha < 1e-3 {
+                        if rn <= ref_norm * (1.0 + 1e-9) || alpha < 1e-3 {
                             accepted = true;
                             break;
                         }
@@ -331,7 +331,8 @@ impl Solver for Newton {
                     });
                 }
                 u.copy_from_slice(&trial);
-                let step_max = (0..nf).fold(0.0f64, |a, i| a.max((alpha * rhs[(i, 0)]).abs()));
+                // Full Newton correction (before the line-search scaling) measures convergence.
+                let step_max = (0..nf).fold(0.0f64, |a, i| a.max(rhs[(i, 0)].abs()));
                 last_err = step_max;
                 let maxu = u.iter().fold(0.0f64, |a, v| a.max(v.norm()));
                 observer(&Progress {
@@ -345,7 +346,7 @@ impl Solver for Newton {
                 if !step_max.is_finite() {
                     return Err(SolveError::NotFinite { step: iterations });
                 }
-                if it > 1 && step_max <= tol && alpha == 1.0 {
+                if it > 1 && step_max <= tol {
                     converged = true;
                     break;
                 }
