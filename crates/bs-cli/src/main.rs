@@ -1,4 +1,47 @@
-//! `brainshift`: the command-line program.
-fn main() {
-    println!("brainshift");
+//! `brainshift`: brain shift computation for image-guided neurosurgery.
+
+mod inspect;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// Computes brain shift with a Total Lagrangian explicit finite-element model solved by
+/// Dynamic Relaxation, with kinematic brain–skull contact.
+#[derive(Debug, Parser)]
+#[command(name = "brainshift", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Reads a mesh file and prints what it holds: counts, sets, bounding box, element
+    /// quality, surface closedness and orientation. Exits non-zero if the mesh is unusable.
+    ///
+    /// Formats: .inp (Abaqus), .msh (Gmsh 2.2/4.1 ASCII), .vtk, .vtu (volume);
+    /// .stl, .obj, .off (surface).
+    Inspect {
+        /// The mesh file.
+        file: PathBuf,
+        /// Print the report as JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Inspect { file, json } => inspect::run(&file, json),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
 }
