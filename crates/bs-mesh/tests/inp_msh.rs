@@ -133,7 +133,8 @@ fn sphere_volume_close_to_ball() {
     let v = total_volume(&m);
     // The boundary nodes lie on the sphere r = 10 and the facets between them are flat, so
     // the tet mesh is an inscribed polyhedron: strictly smaller than the ball. With this
-    // coarse mesh (mesh size ≈ 3 mm) the missing caps are about 1–3 % of the volume.
+    // coarse mesh (898 tets) the missing caps are 2.9 % of the volume (measured 0.97086),
+    // inside the 3 % the issue allows.
     assert!(v < exact, "{v} >= {exact}");
     assert!(v > 0.97 * exact, "{v} vs {exact}");
     assert!((0..m.elements.len()).all(|e| m.element_volume(e) > 0.0));
@@ -258,6 +259,8 @@ fn inp_errors_name_line_and_fix() {
     err_at(inp_str(&format!("{TET_NODES}*NSET, NSET=G, GENERATE\n4, 1\n")), 7, &["GENERATE"]);
     err_at(inp_str(&format!("{TET_NODES}*ELEMENT, TYPE=C3D4\n1, 1, 2,\n")), 7, &["continuation"]);
     err_at(inp_str("*INCLUDE, INPUT=other.inp\n"), 1, &["*INCLUDE"]);
+    err_at(inp_str(&format!("{TET_NODES}*ELSET, ELSET=E\n\n5\n")), 8, &["'E'", "element 5"]);
+    err_at(inp_str(&format!("{TET_NODES}*NSET, NSET=N\n1, other\n")), 7, &["'other'"]);
 }
 
 const MSH41_HEAD: &str = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n";
@@ -389,8 +392,7 @@ fn read_any(name: &str, bytes: &[u8]) -> Result<Mesh, ParseError> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
-
+    // Default 256 cases (override with PROPTEST_CASES for a longer hunt).
     #[test]
     fn truncated_fixtures_never_panic(f in 0..FIXTURES.len(), cut in any::<usize>()) {
         let bytes = fixture(FIXTURES[f]);
@@ -497,8 +499,6 @@ impl<S: Strategy<Value = BTreeSet<u64>> + 'static> ShuffleIds for S {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 128, ..ProptestConfig::default() })]
-
     #[test]
     fn inp_write_read_round_trip_is_exact(mesh in random_mesh()) {
         let mut buf = Vec::new();
