@@ -498,18 +498,99 @@ impl<S: Strategy<Value = BTreeSet<u64>> + 'static> ShuffleIds for S {
     }
 }
 
+/// Checks a read-back coordinate against the original: bitwise equal where the writer
+/// promises exactness (see the inp module docs), else within the 14-significant-digit
+/// rounding bound.
+fn check_coordinate(written: f64, read: f64) -> Result<(), TestCaseError> {
+    let a = written.abs();
+    let exact = format!("{written:?}").len() <= 20 || a == 0.0 || (0.01..1e16).contains(&a);
+    if exact {
+        prop_assert_eq!(read.to_bits(), written.to_bits(), "{:?} read back as {:?}", written, read);
+    } else {
+        prop_assert!((read - written).abs() <= 1e-13 * a, "{:?} read back as {:?}", written, read);
+    }
+    Ok(())
+}
+
+/// The coordinate fields of the `*NODE` block of a written deck.
+fn coordinate_fields(deck: &str) -> Vec<String> {
+    deck.lines()
+        .skip_while(|l| *l != "*NODE")
+        .skip(1)
+        .take_while(|l| !l.starts_with('*'))
+        .flat_map(|l| l.split(", ").skip(1).map(str::to_string).collect::<Vec<_>>())
+        .collect()
+}
+
 proptest! {
     #[test]
-    fn inp_write_read_round_trip_is_exact(mesh in random_mesh()) {
+    fn inp_write_read_round_trip(mesh in random_mesh()) {
         let mut buf = Vec::new();
         inp::write(&mut buf, &mesh).unwrap();
-        let back = inp::read(&buf, Path::new("rt.inp")).unwrap();
-        // Bitwise coordinates (PartialEq on f64 would accept -0.0 == 0.0).
-        let bits = |m: &Mesh| -> Vec<[u64; 3]> {
-            m.nodes.iter().map(|p| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()]).collect()
-        };
-        prop_assert_eq!(bits(&back), bits(&mesh));
-        prop_assert_eq!(&back, &mesh);
+        let text = String::from_utf8(buf).unwrap();
+        // CalculiX reads 20 characters per coordinate and 132 per line.
+        for f in coordinate_fields(&text) {
+            prop_assert!(f.len() <= 20, "{}", f);
+        }
+        prop_assert!(text.lines().all(|l| l.len() <= 132));
+        let back = inp::read(text.as_bytes(), Path::new("rt.inp")).unwrap();
+        prop_assert_eq!(back.nodes.len(), mesh.nodes.len());
+        for (p, q) in mesh.nodes.iter().zip(&back.nodes) {
+            for k in 0..3 {
+                check_coordinate(p[k], q[k])?;
+            }
+        }
+        // Everything else is exact.
+        let same_coords = Mesh { nodes: mesh.nodes.clone(), ..back };
+        prop_assert_eq!(&same_coords, &mesh);
+    }
+
+    #[test]
+    fn coordinates_fit_calculix_and_round_trip(x in any::<f64>().prop_filter("finite", |x| x.is_finite())) {
+        let mesh = Mesh::new(vec![Point3::new(x, -x, x / 3.0)], Vec::new());
+        let mut buf = Vec::new();
+        inp::write(&mut buf, &mesh).unwrap();
+        let text = String::from_utf8(buf).unwrap();
+        for f in coordinate_fields(&text) {
+            prop_assert!(f.len() <= 20, "{}", f);
+        }
+        let back = inp::read(text.as_bytes(), Path::new("x.inp")).unwrap();
+        for k in 0..3 {
+            check_coordinate(mesh.nodes[0][k], back.nodes[0][k])?;
+        }
+    }
+}
+
+#[test]
+fn hard_coordinates_fit_twenty_characters() {
+    // Values whose shortest round-trip text is longer than 20 characters.
+    // Expected texts: the exact digits when they fit (dropping the leading 0, or as an
+    // integer mantissa), else rounded to 16 (or 14 with a 3-digit exponent) digits; next to
+    // f64::MAX rounding up would overflow, so the digits are cut.
+    let cases = [
+        (-0.012345678901234567, "-.012345678901234567"),
+        (1.2345678901234568e-5, "1234567890123457e-20"),
+        (-1.2345678901234567e-100, "-12345678901235e-113"),
+        (5e-324, "5e-324"),
+        (f64::MAX, "1797693134862315e293"),
+        (-f64::MAX, "-179769313486231e294"),
+    ];
+    for (x, expected) in cases {
+        let m = Mesh::new(vec![Point3::new(x, 0.0, 0.0)], Vec::new());
+        let mut buf = Vec::new();
+        inp::write(&mut buf, &m).unwrap();
+        let text = String::from_utf8(buf).unwrap();
+        let field = &coordinate_fields(&text)[0];
+        assert_eq!(field, expected);
+        assert!(field.len() <= 20, "{field}");
+        let back: f64 = field.parse().unwrap();
+        // Exactly representable within 20 characters: bitwise; otherwise 14+ digits.
+        let exact = format!("{x:?}").len() <= 20 || (0.01..1e16).contains(&x.abs());
+        if exact {
+            assert_eq!(back.to_bits(), x.to_bits(), "{field}");
+        } else {
+            assert!((back - x).abs() <= 1e-13 * x.abs(), "{field}");
+        }
     }
 }
 
