@@ -156,7 +156,7 @@ fn inp_syntax_features() {
  10 , 0 , 0 , 0
  30, 1.0, 0.0, 0.0
 20,0,1,0
- 40, 0, 0, 1e0
+ 40, 0, 0, 1D0
 50, 1, 1, 1
 *MATERIAL, NAME=brain
 *ELASTIC
@@ -186,6 +186,7 @@ Fixed, 50
     let m = inp_str(deck).unwrap();
     assert_eq!(m.node_ids, [10, 30, 20, 40, 50]);
     assert_eq!(m.nodes[1], Point3::new(1.0, 0.0, 0.0));
+    assert_eq!(m.nodes[3], Point3::new(0.0, 0.0, 1.0)); // Fortran exponent 1D0
     assert_eq!(m.element_ids, [7, 3]);
     assert_eq!(m.elements[0], Element::tet4([0, 1, 2, 3]));
     assert_eq!(m.elements[1], Element::tet4([1, 2, 3, 4]));
@@ -322,6 +323,7 @@ fn msh_errors_name_line_and_fix() {
     err_at(msh_str(&short), 19, &["lists 4 node tags, expected 8"]);
     let truncated = format!("{MSH41_HEAD}{}", &MSH41_NODES[..37]);
     err_at(msh_str(&truncated), 11, &["unexpected end of file"]);
+    err_at(msh_str(&format!("{MSH41_HEAD}$PartitionedEntities\n2\n")), 4, &["partition"]);
     let e = msh_str(&format!("{MSH41_HEAD}{MSH41_NODES}")).unwrap_err();
     assert_eq!(e.location, Location::File);
     assert!(e.to_string().contains("$Elements"));

@@ -287,6 +287,18 @@ fn keyword_with_continuation(lines: &mut Lines<'_>, first: &str, ln: usize) -> K
     Keyword::parse(&text, ln)
 }
 
+/// A coordinate, accepting Fortran's `D` exponent (`1.5D-3`) besides Rust's float syntax.
+fn parse_coordinate(file: &Path, line: usize, field: &str) -> Result<f64, ParseError> {
+    let t = field.trim();
+    match t.parse::<f64>() {
+        Ok(v) => Ok(v),
+        Err(_) if t.contains(['d', 'D']) => {
+            parse_field(file, line, &t.replace(['d', 'D'], "e"), "a coordinate (number)")
+        }
+        Err(_) => parse_field(file, line, t, "a coordinate (number)"),
+    }
+}
+
 fn read_nodes(lines: &mut Lines<'_>, kw: &Keyword, deck: &mut Deck) -> Result<(), ParseError> {
     let file = lines.file();
     if let Some(sys) = kw.param("SYSTEM")
@@ -308,7 +320,7 @@ fn read_nodes(lines: &mut Lines<'_>, kw: &Keyword, deck: &mut Deck) -> Result<()
         for ci in &mut c {
             match fields.next() {
                 Some(s) if !s.trim().is_empty() => {
-                    *ci = parse_field(file, ln, s, "a coordinate (number)")?;
+                    *ci = parse_coordinate(file, ln, s)?;
                     if !ci.is_finite() {
                         return Err(lines.error(
                             ln,

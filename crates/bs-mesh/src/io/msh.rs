@@ -4,7 +4,8 @@
 //!   ASCII), as are versions 1, 3 and 4.0.
 //! * `$PhysicalNames`, `$Entities` (4.1: which physical groups each entity belongs to),
 //!   `$Nodes` and `$Elements` are read; every other section (`$Periodic`, `$NodeData`, …) is
-//!   skipped. `$Nodes` must come before `$Elements` (gmsh always writes it so).
+//!   skipped. `$Nodes` must come before `$Elements` (gmsh always writes it so). Partitioned
+//!   4.1 files (`$PartitionedEntities`) are rejected: save without partitions.
 //! * Element types 4 (4-node tetrahedron) and 5 (8-node hexahedron) become elements; gmsh's
 //!   node orders for both equal the Abaqus/VTK orders used by [`Mesh`]. Other 3D types
 //!   (second-order tets 11, hexes 12/17, prisms, pyramids) are rejected with the fix.
@@ -205,6 +206,13 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<Mesh, ParseError> {
         match t {
             "$PhysicalNames" => read_physical_names(&mut lines, &mut st)?,
             "$Entities" if version == Version::V4 => read_entities(&mut lines, &mut st)?,
+            "$PartitionedEntities" => {
+                return Err(lines.error(
+                    ln,
+                    "partitioned meshes are not supported (their physical groups live on \
+                     partition entities): save the mesh without partitions",
+                ));
+            }
             "$Nodes" => {
                 if st.seen_nodes {
                     return Err(lines.error(ln, "a second $Nodes section; expected only one"));
