@@ -24,7 +24,7 @@
 //!
 //! # What the writer produces
 //!
-//! [`write`] emits `*NODE`, one `*ELEMENT, TYPE=C3D4` / `TYPE=C3D8` block per run of equal
+//! [`write()`] emits `*NODE`, one `*ELEMENT, TYPE=C3D4` / `TYPE=C3D8` block per run of equal
 //! element kinds (a mesh ordered by kind gets one block per kind; element order is kept), then
 //! `*NSET` and `*ELSET` blocks with 16 ids per line (fewer when 16 would pass 132
 //! characters). The deck is meant for CalculiX too, which reads only the first
