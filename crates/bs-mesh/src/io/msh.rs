@@ -440,7 +440,8 @@ fn node_index(
     })
 }
 
-/// Adds a tet4/hex8 element; `Ok(Some(index))` of the new or identical repeated element.
+/// Adds a tet4/hex8 element and returns its index; with `allow_repeat` (2.2) a repeated tag
+/// with identical nodes returns the earlier index instead of an error.
 fn add_element(
     lines: &Lines<'_>,
     st: &mut State,
