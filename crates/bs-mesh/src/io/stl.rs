@@ -222,8 +222,24 @@ fn check(s: &TriSurface) -> io::Result<()> {
 
 /// Writes a binary STL (coordinates rounded to `f32`, which is all the format holds; normals
 /// computed from the vertices).
+///
+/// Fails with [`io::ErrorKind::InvalidInput`] when a coordinate is beyond the `f32` range
+/// (it would become infinite).
 pub fn write_binary(w: &mut dyn Write, s: &TriSurface) -> io::Result<()> {
     check(s)?;
+    for t in &s.triangles {
+        for &v in t {
+            let p = s.vertices[v];
+            if p.iter().any(|&x| x.is_finite() && !(x as f32).is_finite()) {
+                return Err(io::Error::new(
+                    io::ErrorKind::InvalidInput,
+                    format!(
+                        "vertex {v} ({p}) is beyond the f32 range of binary STL; write ASCII STL, OFF or OBJ"
+                    ),
+                ));
+            }
+        }
+    }
     let n = u32::try_from(s.triangles.len()).map_err(|_| {
         io::Error::new(io::ErrorKind::InvalidInput, "binary STL holds at most 2^32-1 triangles")
     })?;
