@@ -555,3 +555,26 @@ fn writers_reject_inconsistent_input() {
     let bad = Mesh::new(vec![Point3::origin(); 3], vec![Element::tet4([0, 1, 2, 3])]);
     assert!(vtu::write(&mut Vec::new(), &bad, &Fields::default(), vtu::Encoding::Inline).is_err());
 }
+
+#[test]
+fn extreme_counts_are_errors_not_overflows() {
+    let e = obj::read(b"v 0 0 0\nf -9223372036854775808 1 1\n", &p("x.obj")).unwrap_err();
+    assert_eq!(e.location, Location::Line(2));
+    assert!(e.message.starts_with("relative vertex index -9223372036854775808"), "{}", e.message);
+    let huge = replace(
+        &raw_appended_vtu(),
+        "Name=\"nset:A &amp; B\"",
+        "Name=\"x\" NumberOfComponents=\"18446744073709551615\"",
+    );
+    let e = vtu::read(&huge, &p("x.vtu")).unwrap_err();
+    assert!(
+        e.message.contains("array 'x' has 4 values with 18446744073709551615 components"),
+        "{}",
+        e.message
+    );
+    let text = "# vtk DataFile Version 4.2\nx\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 1 double\n0 0 0\n\
+                CELLS 0 0\nCELL_TYPES 0\nPOINT_DATA 1\nFIELD f 1\nbig 18446744073709551615 0 double\n";
+    let e = vtk::read(text.as_bytes(), &p("x.vtk")).unwrap_err();
+    assert_eq!(e.location, Location::Line(11));
+    assert!(e.message.contains("POINT_DATA array 'big' has 0 values"), "{}", e.message);
+}

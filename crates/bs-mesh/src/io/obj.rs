@@ -44,7 +44,7 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<TriSurface, ParseError> {
                     let index = match i {
                         0 => return Err(lines.error(ln, "vertex index 0: OBJ indices start at 1")),
                         i if i > 0 => i - 1,
-                        i if -i <= n => n + i,
+                        i if i >= -n => n + i,
                         i => {
                             return Err(lines.error(
                                 ln,

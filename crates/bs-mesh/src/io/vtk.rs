@@ -491,7 +491,7 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
         ));
     }
     for (arrays, what, n) in [(&pdata, "POINT_DATA", npoints), (&cdata, "CELL_DATA", ncells)] {
-        if let Some(a) = arrays.iter().find(|a| a.data.len() != a.ncomp * n) {
+        if let Some(a) = arrays.iter().find(|a| Some(a.data.len()) != a.ncomp.checked_mul(n)) {
             return Err(ParseError::new(
                 file,
                 a.loc,

@@ -174,13 +174,13 @@ pub(crate) fn assemble(
     cell_arrays: Vec<Array>,
 ) -> Result<(Mesh, Fields), ParseError> {
     let err = |loc: Location, msg: String| ParseError::new(file, loc, msg);
-    if points.data.len() != 3 * npoints || points.ncomp != 3 {
+    if Some(points.data.len()) != npoints.checked_mul(3) || points.ncomp != 3 {
         return Err(err(
             points.loc,
             format!(
                 "points: expected {npoints} points with 3 components ({} values), found {} \
                  values with {} components",
-                3 * npoints,
+                3 * npoints as u128,
                 points.data.len(),
                 points.ncomp
             ),
@@ -262,7 +262,7 @@ pub(crate) fn assemble(
     };
     let mut fields = Fields::default();
     let check = |a: &Array, count: usize, what: &str| -> Result<(), ParseError> {
-        if a.ncomp == 0 || a.data.len() != a.ncomp * count {
+        if a.ncomp == 0 || Some(a.data.len()) != a.ncomp.checked_mul(count) {
             return Err(err(
                 a.loc,
                 format!(
@@ -1206,5 +1206,43 @@ fn codes(
                 out.push(out[out.len() - back]);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unhex(s: &str) -> Vec<u8> {
+        (0..s.len()).step_by(2).map(|i| u8::from_str_radix(&s[i..i + 2], 16).unwrap()).collect()
+    }
+
+    #[test]
+    fn inflate_matches_python_zlib() {
+        // Vectors from Python's zlib.compress: level 0 (stored block) and level 9 (fixed
+        // Huffman with back-references). The sphere fixture exercises dynamic Huffman.
+        let mut out = Vec::new();
+        inflate_zlib(&unhex("7801010300fcff616263024d0127"), 3, &mut out).unwrap();
+        assert_eq!(out, b"abc");
+        let hello = unhex("78dacb48cdc9c957c8402701680308b1");
+        out.clear();
+        inflate_zlib(&hello, 23, &mut out).unwrap();
+        assert_eq!(out, b"hello hello hello hello");
+        // A header announcing fewer bytes than the stream holds is an error, not a big buffer.
+        out.clear();
+        assert!(inflate_zlib(&hello, 10, &mut out).unwrap_err().contains("more bytes"));
+        let mut bad = hello.clone();
+        *bad.last_mut().unwrap() ^= 1;
+        out.clear();
+        assert_eq!(
+            inflate_zlib(&bad, 23, &mut out).unwrap_err(),
+            "zlib checksum mismatch (corrupted data)"
+        );
+    }
+
+    #[test]
+    fn base64_pieces_with_inner_padding_decode() {
+        // VTK encodes a compressed block's header apart from the data: "AQ==" + "AgM=".
+        assert_eq!(b64_decode(b"AQ==\nAgM=").unwrap(), vec![1, 2, 3]);
     }
 }
