@@ -345,6 +345,6 @@ pub fn run(scene_path: &Path) -> Result<ExitCode, CheckError> {
     for w in &p.warnings {
         let _ = writeln!(o, "  warning: {w}");
     }
-    print!("{o}");
+    crate::emit(&o);
     Ok(ExitCode::SUCCESS)
 }
