@@ -58,3 +58,6 @@ pub use loads::{LoadError, Loads, ramp};
 pub use model::{Model, ModelError, ModelOptions, Solid, TetFormulation};
 pub use newton::{Newton, NewtonParams};
 pub use solver::{Progress, Report, Solution, SolveError, Solver};
+
+#[cfg(test)]
+mod tests;

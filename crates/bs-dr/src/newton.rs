@@ -55,8 +55,8 @@ impl Newton {
 }
 
 /// Element data for the tangent: nodes, gradients, volume, material, optional hourglass.
-struct ElemView<'a> {
-    nodes: &'a [u32],
+pub(crate) struct ElemView<'a> {
+    pub(crate) nodes: &'a [u32],
     g: &'a [[f64; 3]],
     vol: f64,
     mat: usize,
@@ -64,7 +64,7 @@ struct ElemView<'a> {
 }
 
 impl Model {
-    fn elem_views(&self) -> impl Iterator<Item = ElemView<'_>> {
+    pub(crate) fn elem_views(&self) -> impl Iterator<Item = ElemView<'_>> {
         self.tets
             .iter()
             .map(|t| ElemView {
@@ -86,7 +86,12 @@ impl Model {
     /// Consistent tangent of one element (3n×3n, row-major into `k`), in the same
     /// formulation as the force kernels: `K_ab = V [ (g_a·S g_b) I + B_aᵀ ℂ B_b ] (+ K_hg)`.
     /// Returns false if the element is inverted.
-    fn element_tangent(&self, e: &ElemView<'_>, u: &[Vector3<f64>], k: &mut [f64]) -> bool {
+    pub(crate) fn element_tangent(
+        &self,
+        e: &ElemView<'_>,
+        u: &[Vector3<f64>],
+        k: &mut [f64],
+    ) -> bool {
         let nn = e.nodes.len();
         let mut f = nalgebra::Matrix3::<f64>::identity();
         for a in 0..nn {

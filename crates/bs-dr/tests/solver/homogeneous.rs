@@ -114,3 +114,45 @@ fn simple_shear_with_prescribed_boundary() {
         assert!(worst <= 1e-6 * gamma * size, "{tech:?}: interior error {worst:e}");
     }
 }
+
+/// The same uniaxial case on the committed gmsh meshes (unstructured T4 cube, 3×3×3 H8 cube),
+/// read with bs-mesh's Abaqus reader.
+#[test]
+fn uniaxial_compression_on_gmsh_fixtures() {
+    use bs_dr::{Model, ModelOptions, Solid, TetFormulation};
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/basic");
+    let lz = 0.8;
+    let lt = lateral_stretch(lz);
+    let material = Material::neo_hookean(E, NU).unwrap();
+    for (file, tet) in [
+        ("cube-t4.inp", TetFormulation::T4),
+        ("cube-t4.inp", TetFormulation::T4Anp),
+        ("cube-h8.inp", TetFormulation::T4),
+    ] {
+        let mesh = bs_mesh::io::read_mesh(&dir.join(file)).unwrap();
+        let model = Model::uniform(
+            &mesh,
+            Solid { material, density: 1000.0 },
+            ModelOptions { tet, ..Default::default() },
+        )
+        .unwrap();
+        let mut loads = Loads::new(mesh.nodes.len());
+        for (i, p) in mesh.nodes.iter().enumerate() {
+            for c in 0..3 {
+                if p[c].abs() < 1e-9 {
+                    loads.fix(i, c).unwrap();
+                }
+            }
+            if (p.z - 1.0).abs() < 1e-9 {
+                loads.prescribe(i, 2, lz - 1.0).unwrap();
+            }
+        }
+        let sol = dr().solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
+        let mut worst = 0.0f64;
+        for (i, p) in mesh.nodes.iter().enumerate() {
+            let exact = Vector3::new((lt - 1.0) * p.x, (lt - 1.0) * p.y, (lz - 1.0) * p.z);
+            worst = worst.max((sol.displacements[i] - exact).amax());
+        }
+        assert!(worst <= 1e-6 * (1.0 - lz), "{file} {tet:?}: max nodal error {worst:e}");
+    }
+}

@@ -3,6 +3,7 @@
 #![allow(clippy::needless_range_loop)]
 
 mod common;
+mod contact_seam;
 mod guard;
 mod homogeneous;
 mod locking;
