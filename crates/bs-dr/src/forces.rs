@@ -10,6 +10,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use bs_mesh::Vector3;
 use nalgebra::Matrix3;
+
 use rayon::prelude::*;
 
 use crate::model::{Model, TetFormulation};
@@ -39,26 +40,19 @@ pub struct Inversion {
     pub jacobian: f64,
 }
 
-#[inline(always)]
-fn det3(f: &[[f64; 3]; 3]) -> f64 {
-    f[0][0] * (f[1][1] * f[2][2] - f[1][2] * f[2][1])
-        - f[0][1] * (f[1][0] * f[2][2] - f[1][2] * f[2][0])
-        + f[0][2] * (f[1][0] * f[2][1] - f[1][1] * f[2][0])
-}
-
 /// `F = I + Σ_a u_a ⊗ g_a` (row i = displacement component, column j = reference direction).
 #[inline(always)]
 fn deformation_gradient<const N: usize>(
     u: &[Vector3<f64>],
     nodes: &[u32; N],
     g: &[[f64; 3]; N],
-) -> [[f64; 3]; 3] {
-    let mut f = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+) -> Matrix3<f64> {
+    let mut f = Matrix3::identity();
     for a in 0..N {
         let ua = &u[nodes[a] as usize];
-        for i in 0..3 {
-            for j in 0..3 {
-                f[i][j] += ua[i] * g[a][j];
+        for j in 0..3 {
+            for i in 0..3 {
+                f[(i, j)] += ua[i] * g[a][j];
             }
         }
     }
@@ -66,41 +60,23 @@ fn deformation_gradient<const N: usize>(
 }
 
 #[inline(always)]
-fn right_cauchy_green(f: &[[f64; 3]; 3]) -> Matrix3<f64> {
-    let mut c = Matrix3::zeros();
-    for i in 0..3 {
-        for j in i..3 {
-            let v = f[0][i] * f[0][j] + f[1][i] * f[1][j] + f[2][i] * f[2][j];
-            c[(i, j)] = v;
-            c[(j, i)] = v;
-        }
-    }
-    c
+fn det3(f: &Matrix3<f64>) -> f64 {
+    f[(0, 0)] * (f[(1, 1)] * f[(2, 2)] - f[(1, 2)] * f[(2, 1)])
+        - f[(0, 1)] * (f[(1, 0)] * f[(2, 2)] - f[(1, 2)] * f[(2, 0)])
+        + f[(0, 2)] * (f[(1, 0)] * f[(2, 1)] - f[(1, 1)] * f[(2, 0)])
 }
 
-/// `out_a = scale · F S g_a` for every node.
+/// `out_a = scale · P g_a` for every node (`P` the first Piola–Kirchhoff stress).
 #[inline(always)]
 fn nodal_forces<const N: usize>(
-    f: &[[f64; 3]; 3],
-    s: &Matrix3<f64>,
+    p: &Matrix3<f64>,
     scale: f64,
     g: &[[f64; 3]; N],
     out: &mut [Vector3<f64>],
 ) {
-    // P = scale · F S
-    let mut p = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            p[i][j] = scale * (f[i][0] * s[(0, j)] + f[i][1] * s[(1, j)] + f[i][2] * s[(2, j)]);
-        }
-    }
+    let p = p * scale;
     for a in 0..N {
-        let ga = &g[a];
-        out[a] = Vector3::new(
-            p[0][0] * ga[0] + p[0][1] * ga[1] + p[0][2] * ga[2],
-            p[1][0] * ga[0] + p[1][1] * ga[1] + p[1][2] * ga[2],
-            p[2][0] * ga[0] + p[2][1] * ga[1] + p[2][2] * ga[2],
-        );
+        out[a] = p * Vector3::from(g[a]);
     }
 }
 
@@ -149,9 +125,8 @@ impl Model {
                             out.iter_mut().for_each(|o| *o = Vector3::zeros());
                             return;
                         }
-                        let c = right_cauchy_green(&f);
-                        let s = self.solids[t.mat as usize].material.pk2_cj(&c, j);
-                        nodal_forces(&f, &s, t.vol, &t.g, out);
+                        let p = self.solids[t.mat as usize].material.pk1_fj(&f, j);
+                        nodal_forces(&p, t.vol, &t.g, out);
                     });
             }
             TetFormulation::T4Anp => {
@@ -198,10 +173,10 @@ impl Model {
                             return;
                         }
                         let f = deformation_gradient(u, &t.nodes, &t.g);
-                        let r = (jbar / j).cbrt();
-                        let c = right_cauchy_green(&f) * (r * r);
-                        let s = self.solids[t.mat as usize].material.pk2_cj(&c, jbar);
-                        nodal_forces(&f, &s, t.vol / r, &t.g, out);
+                        let r = bs_material::inv_cbrt(j / jbar); // (J̄/J)^(1/3)
+                        // P̄ = P(F̄ = r F, J̄); f_a = V r⁻¹ F S̄ g_a = V r⁻² P̄ g_a.
+                        let p = self.solids[t.mat as usize].material.pk1_fj(&(f * r), jbar);
+                        nodal_forces(&p, t.vol / (r * r), &t.g, out);
                     });
             }
         }
@@ -219,9 +194,8 @@ impl Model {
                     out.iter_mut().for_each(|o| *o = Vector3::zeros());
                     return;
                 }
-                let c = right_cauchy_green(&f);
-                let s = self.solids[h.mat as usize].material.pk2_cj(&c, j);
-                nodal_forces(&f, &s, h.vol, &h.g, out);
+                let p = self.solids[h.mat as usize].material.pk1_fj(&f, j);
+                nodal_forces(&p, h.vol, &h.g, out);
                 // Hourglass forces K_hg u (per component).
                 for a in 0..8 {
                     let mut acc = Vector3::zeros();

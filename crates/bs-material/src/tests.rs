@@ -97,6 +97,17 @@ macro_rules! law_properties {
                 }
 
                 #[test]
+                fn first_piola_kirchhoff_is_f_times_s(v in prop::array::uniform9(-0.35f64..0.35)) {
+                    let f = f_from(v);
+                    prop_assume!(f.determinant() > 0.3);
+                    let p = params();
+                    let s = <$law>::pk2(&p, &f).unwrap();
+                    let pk1 = <$law>::pk1_fj(&p, &f, f.determinant());
+                    // Different formulas for the same tensor: agree to round-off.
+                    prop_assert!(max_abs(&(pk1 - f * s)) <= 1e-12 * (max_abs(&(f * s)) + $mu));
+                }
+
+                #[test]
                 fn stress_is_symmetric(v in prop::array::uniform9(-0.35f64..0.35)) {
                     let f = f_from(v);
                     prop_assume!(f.determinant() > 0.3);
@@ -262,4 +273,31 @@ fn neo_hookean_simple_shear_cauchy() {
         // σ₁₁ − σ₂₂ = μ γ² (normal-stress difference of the neo-Hookean solid).
         assert!((sigma[(0, 0)] - sigma[(1, 1)] - el.mu * gamma * gamma).abs() <= 1e-10 * el.mu);
     }
+}
+
+/// `inv_cbrt` against `powf` over 40 orders of magnitude and near 1. `powf(−1/3)` itself is
+/// off by `|ln x| · 1.9e-17` relative because −1/3 is not representable (8.5e-16 at 1e-20),
+/// so that comparison allows 4e-16 + that; the exact check is `r³ x = 1` to 1e-15 (three
+/// roundings).
+#[test]
+fn inv_cbrt_is_accurate() {
+    let mut x = 1e-20;
+    while x < 1e20 {
+        for y in [x, x * 1.2345, x * 3.7] {
+            let r = inv_cbrt(y);
+            let expected = y.powf(-1.0 / 3.0);
+            let tol = 4e-16 + y.ln().abs() * 1.9e-17;
+            assert!((r - expected).abs() <= tol * expected, "x = {y}: {r} vs {expected}");
+            // r³ x = 1 to round-off
+            assert!((r * r * r * y - 1.0).abs() <= 1e-15);
+        }
+        x *= 1.7;
+    }
+    for j in [0.5, 0.9, 0.999_999, 1.0, 1.000_001, 1.1, 2.0] {
+        assert!((inv_cbrt(j * j) - j.powf(-2.0 / 3.0)).abs() <= 4e-16);
+    }
+    assert_eq!(inv_cbrt(1.0), 1.0);
+    assert!(
+        (inv_cbrt(1e-310) - 1e-310f64.powf(-1.0 / 3.0)).abs() <= 1e-15 * 1e-310f64.powf(-1.0 / 3.0)
+    );
 }
