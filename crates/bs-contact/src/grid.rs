@@ -1,0 +1,235 @@
+//! Uniform bucket grid ("bucket sort" of the paper) over a point set, with per-axis bucket
+//! sizes, exact nearest-point search and box-range queries.
+
+use nalgebra::{Point3, Vector3};
+
+use crate::master::bounds;
+
+/// Most buckets a grid may have; beyond it the bucket sizes are scaled up uniformly (this
+/// only happens for pathological meshes whose edges are tiny compared to the model).
+const MAX_CELLS: usize = 1 << 25;
+
+/// Bucket faces are moved this fraction of a bucket towards the query when bounding the
+/// distance to unvisited buckets, so that rounding in the bucket index of a point on a
+/// bucket face can never make the bound optimistic.
+const SLACK: f64 = 1e-9;
+
+/// A uniform grid of buckets holding point items.
+#[derive(Debug, Clone)]
+pub struct BucketGrid {
+    /// Lower corner of bucket (0, 0, 0).
+    pub origin: Point3<f64>,
+    /// Bucket size per axis.
+    pub h: Vector3<f64>,
+    inv_h: Vector3<f64>,
+    /// Number of buckets per axis.
+    pub dims: [usize; 3],
+    /// CSR offsets of the buckets (x fastest).
+    start: Vec<u32>,
+    /// Item ids in bucket order.
+    ids: Vec<u32>,
+    /// Item coordinates in bucket order.
+    pts: Vec<Point3<f64>>,
+}
+
+/// Result of an exact nearest-item search.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Nearest {
+    /// Item id of the nearest item (first found on ties, in bucket scan order).
+    pub id: u32,
+    /// Squared distance to it.
+    pub d2: f64,
+    /// A lower bound on the distance to every other item (exact second-nearest distance
+    /// when asked for, else the search's certified bound).
+    pub other_lb: f64,
+}
+
+impl BucketGrid {
+    /// Builds the grid over `items` (id, point) with bucket size `h` per axis. Sizes that are
+    /// zero or not finite are replaced by the largest positive one (or 1).
+    pub fn new(items: &[(u32, Point3<f64>)], h: Vector3<f64>) -> Self {
+        let (lo, hi) = if items.is_empty() {
+            (Point3::origin(), Point3::origin())
+        } else {
+            bounds(items.iter().map(|(_, p)| p))
+        };
+        let fallback = {
+            let m = h.iter().copied().filter(|x| x.is_finite() && *x > 0.0).fold(0.0, f64::max);
+            if m > 0.0 { m } else { 1.0 }
+        };
+        let mut h = h.map(|x| if x.is_finite() && x > 0.0 { x } else { fallback });
+        let mut dims = [1usize; 3];
+        loop {
+            for k in 0..3 {
+                dims[k] = ((hi[k] - lo[k]) / h[k]).floor() as usize + 1;
+            }
+            if dims.iter().product::<usize>() <= MAX_CELLS {
+                break;
+            }
+            h *= 2.0;
+        }
+        let inv_h = h.map(|x| 1.0 / x);
+        let mut grid = Self {
+            origin: lo,
+            h,
+            inv_h,
+            dims,
+            start: vec![0; dims[0] * dims[1] * dims[2] + 1],
+            ids: vec![0; items.len()],
+            pts: vec![Point3::origin(); items.len()],
+        };
+        let cells: Vec<usize> = items.iter().map(|(_, p)| grid.flat(grid.cell_of(p))).collect();
+        for &c in &cells {
+            grid.start[c + 1] += 1;
+        }
+        for i in 0..grid.start.len() - 1 {
+            grid.start[i + 1] += grid.start[i];
+        }
+        let mut fill = grid.start.clone();
+        for (k, &c) in cells.iter().enumerate() {
+            let slot = fill[c] as usize;
+            grid.ids[slot] = items[k].0;
+            grid.pts[slot] = items[k].1;
+            fill[c] += 1;
+        }
+        grid
+    }
+
+    /// Bucket of a point, clamped to the grid.
+    #[inline]
+    pub fn cell_of(&self, p: &Point3<f64>) -> [usize; 3] {
+        let mut c = [0usize; 3];
+        for k in 0..3 {
+            let x = ((p[k] - self.origin[k]) * self.inv_h[k]).floor();
+            c[k] = if x <= 0.0 || x.is_nan() { 0 } else { (x as usize).min(self.dims[k] - 1) };
+        }
+        c
+    }
+
+    #[inline]
+    fn flat(&self, c: [usize; 3]) -> usize {
+        c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2])
+    }
+
+    /// Items in one bucket: (ids, points).
+    #[inline]
+    fn bucket(&self, c: [usize; 3]) -> (&[u32], &[Point3<f64>]) {
+        let f = self.flat(c);
+        let (s, e) = (self.start[f] as usize, self.start[f + 1] as usize);
+        (&self.ids[s..e], &self.pts[s..e])
+    }
+
+    /// Lower bound on the distance from `p` to any item outside the bucket block
+    /// `[c − r, c + r]` (clamped to the grid); infinity if the block covers the grid.
+    #[inline]
+    fn outside_bound(&self, p: &Point3<f64>, c: [usize; 3], r: usize) -> f64 {
+        let mut bound = f64::INFINITY;
+        for k in 0..3 {
+            if c[k] > r {
+                let face = self.origin[k] + (c[k] - r) as f64 * self.h[k];
+                bound = bound.min((p[k] - face - SLACK * self.h[k]).max(0.0));
+            }
+            if c[k] + r + 1 < self.dims[k] {
+                let face = self.origin[k] + (c[k] + r + 1) as f64 * self.h[k];
+                bound = bound.min((face - p[k] - SLACK * self.h[k]).max(0.0));
+            }
+        }
+        bound
+    }
+
+    /// Visits every bucket at Chebyshev index distance exactly `r` from `c`.
+    #[inline]
+    fn for_shell(&self, c: [usize; 3], r: usize, mut f: impl FnMut(&[u32], &[Point3<f64>])) {
+        let lo = |k: usize| c[k].saturating_sub(r);
+        let hi = |k: usize| (c[k] + r).min(self.dims[k] - 1);
+        for z in lo(2)..=hi(2) {
+            let dz = z.abs_diff(c[2]);
+            for y in lo(1)..=hi(1) {
+                let dy = y.abs_diff(c[1]);
+                if dz == r || dy == r {
+                    for x in lo(0)..=hi(0) {
+                        let (ids, pts) = self.bucket([x, y, z]);
+                        f(ids, pts);
+                    }
+                } else {
+                    // Only the two x-ends of the row are on the shell.
+                    if c[0] >= r {
+                        let (ids, pts) = self.bucket([c[0] - r, y, z]);
+                        f(ids, pts);
+                    }
+                    if r > 0 && c[0] + r < self.dims[0] {
+                        let (ids, pts) = self.bucket([c[0] + r, y, z]);
+                        f(ids, pts);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Exact nearest item to `p`: the bucket of `p` and its 26 neighbours first (the paper's
+    /// search), then further shells of buckets until the nearest found is certified closer
+    /// than anything unvisited. A point outside the grid is clamped to the nearest bucket and
+    /// the same certification applies, so it also gets the exact answer. With `second`, the
+    /// search goes on until the second-nearest distance is exact too. `None` if the grid is
+    /// empty.
+    pub fn nearest(&self, p: &Point3<f64>, second: bool) -> Option<Nearest> {
+        if self.ids.is_empty() {
+            return None;
+        }
+        let c = self.cell_of(p);
+        let mut best = (u32::MAX, f64::INFINITY);
+        let mut next = f64::INFINITY;
+        let mut r = 0;
+        loop {
+            self.for_shell(c, r, |ids, pts| {
+                for (id, q) in ids.iter().zip(pts) {
+                    let d2 = (q - p).norm_squared();
+                    if d2 < best.1 {
+                        next = best.1;
+                        best = (*id, d2);
+                    } else if d2 < next {
+                        next = d2;
+                    }
+                }
+            });
+            // The paper's block: P's bucket and its 26 neighbours, before any certification.
+            if r >= 1 {
+                let bound = self.outside_bound(p, c, r);
+                let target = if second { next } else { best.1 };
+                if target <= bound * bound {
+                    return Some(Nearest {
+                        id: best.0,
+                        d2: best.1,
+                        other_lb: next.sqrt().min(bound),
+                    });
+                }
+            }
+            r += 1;
+        }
+    }
+
+    /// Calls `f(id)` for every item whose point lies within the axis-aligned box
+    /// `[q − radius, q + radius]` (a superset of the ball of that radius).
+    pub fn for_each_in_box(
+        &self,
+        q: &Point3<f64>,
+        radius: f64,
+        mut f: impl FnMut(u32, &Point3<f64>),
+    ) {
+        if self.ids.is_empty() {
+            return;
+        }
+        let lo = self.cell_of(&(q - Vector3::repeat(radius)));
+        let hi = self.cell_of(&(q + Vector3::repeat(radius)));
+        for z in lo[2]..=hi[2] {
+            for y in lo[1]..=hi[1] {
+                for x in lo[0]..=hi[0] {
+                    let (ids, pts) = self.bucket([x, y, z]);
+                    for (id, p) in ids.iter().zip(pts) {
+                        f(*id, p);
+                    }
+                }
+            }
+        }
+    }
+}
