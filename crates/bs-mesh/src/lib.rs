@@ -26,5 +26,5 @@ mod validate;
 pub use boundary::BoundarySurface;
 pub use mesh::{Element, ElementKind, Mesh};
 pub use nalgebra::{Point3, Vector3};
-pub use surface::TriSurface;
+pub use surface::{Edge, SurfaceCheck, SurfaceError, SurfaceTopology, TriSurface};
 pub use validate::{MeshError, ValidationReport};

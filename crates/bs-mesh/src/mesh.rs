@@ -239,7 +239,7 @@ pub(crate) fn hex_jacobian_det(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     pub(crate) fn unit_hex() -> Mesh {
