@@ -76,12 +76,12 @@ impl<H: ClosestPoint> Enforcer<H> {
         let mut report = EnforceReport::default();
         for (k, &node) in self.slaves.iter().enumerate() {
             let Some(p) = positions.get_mut(node) else { continue };
-            if let Some(proj) = self.handler.closest(k, p) {
-                if proj.outside {
-                    report.nodes_in_contact += 1;
-                    report.max_penetration = report.max_penetration.max(-proj.distance);
-                    *p = proj.point;
-                }
+            if let Some(proj) = self.handler.closest(k, p)
+                && proj.outside
+            {
+                report.nodes_in_contact += 1;
+                report.max_penetration = report.max_penetration.max(-proj.distance);
+                *p = proj.point;
             }
         }
         report
