@@ -42,7 +42,9 @@ fn handlers_agree_with_brute_force_on_random_surfaces() {
                 if b.distance.abs() <= d {
                     within += 1;
                     outside_within += b.outside as usize;
-                    let p = p.unwrap_or_else(|| panic!("{name}: paper found nothing at {q:?}, brute {b:?}"));
+                    let p = p.unwrap_or_else(|| {
+                        panic!("{name}: paper found nothing at {q:?}, brute {b:?}")
+                    });
                     assert!(
                         (p.distance - b.distance).abs() <= t && p.outside == b.outside,
                         "{name} d={d_factor}L: paper {p:?} vs brute {b:?} at {q:?}"
@@ -51,7 +53,10 @@ fn handlers_agree_with_brute_force_on_random_surfaces() {
                     assert_eq!(c, p, "{name}: coherent differs from paper at {q:?}");
                 } else {
                     if !b.outside {
-                        assert!(!p.is_some_and(|p| p.outside), "{name}: paper calls inside {q:?} outside");
+                        assert!(
+                            !p.is_some_and(|p| p.outside),
+                            "{name}: paper calls inside {q:?} outside"
+                        );
                     }
                     // Beyond d the coherent handler may skip, but never disagrees on outside.
                     assert_eq!(
@@ -69,7 +74,11 @@ fn handlers_agree_with_brute_force_on_random_surfaces() {
 
 /// Finds a query where, as in the paper's Fig. 2c, the closest point is on a face that
 /// does not contain the closest master node C.
-fn find_fig2c(m: &Arc<MasterSurface>, paper: &PaperContact, brute: &BruteForce) -> Option<bs_mesh::Point3<f64>> {
+fn find_fig2c(
+    m: &Arc<MasterSurface>,
+    paper: &PaperContact,
+    brute: &BruteForce,
+) -> Option<bs_mesh::Point3<f64>> {
     let mut rng = Rng::new(7);
     for _ in 0..20000 {
         let q = query_near(m, &mut rng, 0.25 * m.max_edge);
@@ -141,7 +150,10 @@ fn literal_edge_rules_miss_closest_edges() {
         assert!((o.distance - b.distance).abs() <= t && o.outside == b.outside);
         let l = literal.project(&q);
         if l.is_none_or(|l| (l.distance - b.distance).abs() > t) {
-            assert!(matches!(b.feature, Some(Feature::Edge(_))), "literal rules miss a non-edge: {b:?}");
+            assert!(
+                matches!(b.feature, Some(Feature::Edge(_))),
+                "literal rules miss a non-edge: {b:?}"
+            );
             literal_misses += 1;
         }
     }
@@ -164,7 +176,8 @@ fn points_outside_the_bucket_grid_get_exact_answers() {
     for _ in 0..200 {
         let q = bs_mesh::Point3::from(rng.direction() * rng.range(1.5, 6.0));
         let c = paper.closest_node(&q).unwrap();
-        let best = (0..m.vertices.len()).map(|v| (m.vertices[v] - q).norm()).fold(f64::INFINITY, f64::min);
+        let best =
+            (0..m.vertices.len()).map(|v| (m.vertices[v] - q).norm()).fold(f64::INFINITY, f64::min);
         assert_eq!((m.vertices[c as usize] - q).norm(), best);
         let b = brute.project(&q);
         let p = paper.project(&q).unwrap();
