@@ -1,6 +1,6 @@
 //! Property tests of the geometric predicates: point–triangle closest point in all seven
-#![allow(clippy::needless_range_loop)]
 //! Voronoi regions, normals, the §3.2 list tests, bucket sizes, the exact nearest-node search.
+#![allow(clippy::needless_range_loop)]
 
 mod common;
 
