@@ -43,6 +43,21 @@ pub trait ClosestPoint {
     fn name(&self) -> &'static str;
 }
 
+impl<H: ClosestPoint + ?Sized> ClosestPoint for &mut H {
+    #[inline]
+    fn closest(&mut self, slave: usize, p: &Point3<f64>) -> Option<Projection> {
+        (**self).closest(slave, p)
+    }
+
+    fn reach(&self) -> f64 {
+        (**self).reach()
+    }
+
+    fn name(&self) -> &'static str {
+        (**self).name()
+    }
+}
+
 /// What one enforcement pass did. Same shape as the solver's `ContactReport`.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct EnforceReport {
