@@ -93,6 +93,9 @@ fn run<H: ClosestPoint>(handler: H, s: &Scenario, steps: usize) -> Run {
     }
 }
 
+/// Handler name and its run.
+type Runs = Vec<(&'static str, Run)>;
+
 struct Row {
     name: &'static str,
     base: Run,
@@ -108,7 +111,7 @@ fn skulls() -> (TriSurface, TriSurface) {
 fn bench_all(
     skull: &TriSurface,
     s: &Scenario,
-) -> Result<(Vec<(&'static str, Run)>, String), String> {
+) -> Result<(Runs, String), String> {
     let t0 = Instant::now();
     let m = Arc::new(MasterSurface::new(skull).map_err(|e| e.to_string())?);
     let params = PaperParams::default();
