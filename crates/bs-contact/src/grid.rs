@@ -111,14 +111,6 @@ impl BucketGrid {
         c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2])
     }
 
-    /// Items in one bucket: (ids, points).
-    #[inline]
-    fn bucket(&self, c: [usize; 3]) -> (&[u32], &[Point3<f64>]) {
-        let f = self.flat(c);
-        let (s, e) = (self.start[f] as usize, self.start[f + 1] as usize);
-        (&self.ids[s..e], &self.pts[s..e])
-    }
-
     /// Lower bound on the distance from `p` to any item outside the bucket block
     /// `[c − r, c + r]` (clamped to the grid); infinity if the block covers the grid.
     #[inline]
@@ -137,9 +129,10 @@ impl BucketGrid {
         bound
     }
 
-    /// Visits every bucket at Chebyshev index distance exactly `r` from `c`.
+    /// Calls `f` with the item ranges of every bucket at Chebyshev index distance exactly
+    /// `r` from `c` (whole rows where the row lies on the shell).
     #[inline]
-    fn for_shell(&self, c: [usize; 3], r: usize, mut f: impl FnMut(&[u32], &[Point3<f64>])) {
+    fn for_shell(&self, c: [usize; 3], r: usize, mut f: impl FnMut(std::ops::Range<usize>)) {
         let lo = |k: usize| c[k].saturating_sub(r);
         let hi = |k: usize| (c[k] + r).min(self.dims[k] - 1);
         for z in lo(2)..=hi(2) {
@@ -147,19 +140,14 @@ impl BucketGrid {
             for y in lo(1)..=hi(1) {
                 let dy = y.abs_diff(c[1]);
                 if dz == r || dy == r {
-                    for x in lo(0)..=hi(0) {
-                        let (ids, pts) = self.bucket([x, y, z]);
-                        f(ids, pts);
-                    }
+                    f(self.row(lo(0), hi(0), y, z));
                 } else {
                     // Only the two x-ends of the row are on the shell.
                     if c[0] >= r {
-                        let (ids, pts) = self.bucket([c[0] - r, y, z]);
-                        f(ids, pts);
+                        f(self.row(c[0] - r, c[0] - r, y, z));
                     }
                     if r > 0 && c[0] + r < self.dims[0] {
-                        let (ids, pts) = self.bucket([c[0] + r, y, z]);
-                        f(ids, pts);
+                        f(self.row(c[0] + r, c[0] + r, y, z));
                     }
                 }
             }
@@ -179,33 +167,90 @@ impl BucketGrid {
         let c = self.cell_of(p);
         let mut best = (u32::MAX, f64::INFINITY);
         let mut next = f64::INFINITY;
-        let mut r = 0;
-        loop {
-            self.for_shell(c, r, |ids, pts| {
-                for (id, q) in ids.iter().zip(pts) {
-                    let d2 = (q - p).norm_squared();
-                    if d2 < best.1 {
-                        next = best.1;
-                        best = (*id, d2);
-                    } else if d2 < next {
-                        next = d2;
-                    }
-                }
-            });
-            // The paper's block: P's bucket and its 26 neighbours, before any certification.
-            if r >= 1 {
-                let bound = self.outside_bound(p, c, r);
-                let target = if second { next } else { best.1 };
-                if target <= bound * bound {
-                    return Some(Nearest {
-                        id: best.0,
-                        d2: best.1,
-                        other_lb: next.sqrt().min(bound),
-                    });
+        let visit = |range: std::ops::Range<usize>, best: &mut (u32, f64), next: &mut f64| {
+            for (id, q) in self.ids[range.clone()].iter().zip(&self.pts[range]) {
+                let d2 = (q - p).norm_squared();
+                if d2 < best.1 {
+                    *next = best.1;
+                    *best = (*id, d2);
+                } else if d2 < *next {
+                    *next = d2;
                 }
             }
-            r += 1;
+        };
+        // The paper's block: P's bucket and its 26 neighbours. Buckets are stored x-fastest,
+        // so each row of the block is one contiguous range.
+        let (x0, x1) = (c[0].saturating_sub(1), (c[0] + 1).min(self.dims[0] - 1));
+        for z in c[2].saturating_sub(1)..=(c[2] + 1).min(self.dims[2] - 1) {
+            for y in c[1].saturating_sub(1)..=(c[1] + 1).min(self.dims[1] - 1) {
+                visit(self.row(x0, x1, y, z), &mut best, &mut next);
+            }
         }
+        // Then whole shells only while nothing has been found.
+        let mut r = 1;
+        loop {
+            let bound = self.outside_bound(p, c, r);
+            let target = if second { next } else { best.1 };
+            if target <= bound * bound {
+                return Some(Nearest { id: best.0, d2: best.1, other_lb: next.sqrt().min(bound) });
+            }
+            if target.is_finite() {
+                break;
+            }
+            r += 1;
+            self.for_shell(c, r, |range| visit(range, &mut best, &mut next));
+        }
+        // Certification: visit the buckets outside the block that intersect the ball of the
+        // current target radius (the target only shrinks, so the ranges computed from it are
+        // supersets), row by row, each row cut to the ball and split around the block.
+        let target = |best: &(u32, f64), next: f64| if second { next } else { best.1 };
+        let rad = target(&best, next).sqrt();
+        let lo = self.cell_of(&(p - Vector3::repeat(rad)));
+        let hi = self.cell_of(&(p + Vector3::repeat(rad)));
+        for z in lo[2]..=hi[2] {
+            let dz = self.axis_gap(p, 2, z);
+            for y in lo[1]..=hi[1] {
+                let dy = self.axis_gap(p, 1, y);
+                let rest = target(&best, next) - (dz * dz + dy * dy);
+                if rest <= 0.0 {
+                    continue;
+                }
+                let w = rest.sqrt();
+                let xa = self.cell_of(&Point3::new(p.x - w, p.y, p.z))[0];
+                let xb = self.cell_of(&Point3::new(p.x + w, p.y, p.z))[0];
+                if z.abs_diff(c[2]) <= r && y.abs_diff(c[1]) <= r {
+                    // Skip the part of the row inside the block.
+                    let (bl, bh) = (c[0].saturating_sub(r), c[0] + r);
+                    if xa < bl {
+                        visit(self.row(xa, (bl - 1).min(xb), y, z), &mut best, &mut next);
+                    }
+                    if xb > bh {
+                        visit(self.row(xa.max(bh + 1), xb, y, z), &mut best, &mut next);
+                    }
+                } else {
+                    visit(self.row(xa, xb, y, z), &mut best, &mut next);
+                }
+            }
+        }
+        // Every item not visited is at least √target away.
+        let lb = if second { next.sqrt() } else { best.1.sqrt() };
+        Some(Nearest { id: best.0, d2: best.1, other_lb: lb })
+    }
+
+    /// Item range of the buckets `x0..=x1` of row (y, z).
+    #[inline]
+    fn row(&self, x0: usize, x1: usize, y: usize, z: usize) -> std::ops::Range<usize> {
+        let base = self.dims[0] * (y + self.dims[1] * z);
+        self.start[base + x0] as usize..self.start[base + x1 + 1] as usize
+    }
+
+    /// Distance from `p` to the slab of bucket index `i` on `axis` (0 inside), with the
+    /// rounding slack.
+    #[inline]
+    fn axis_gap(&self, p: &Point3<f64>, axis: usize, i: usize) -> f64 {
+        let lo = self.origin[axis] + (i as f64 - SLACK) * self.h[axis];
+        let hi = self.origin[axis] + (i as f64 + 1.0 + SLACK) * self.h[axis];
+        (lo - p[axis]).max(p[axis] - hi).max(0.0)
     }
 
     /// Calls `f(id)` for every item whose point lies within the axis-aligned box
@@ -223,11 +268,9 @@ impl BucketGrid {
         let hi = self.cell_of(&(q + Vector3::repeat(radius)));
         for z in lo[2]..=hi[2] {
             for y in lo[1]..=hi[1] {
-                for x in lo[0]..=hi[0] {
-                    let (ids, pts) = self.bucket([x, y, z]);
-                    for (id, p) in ids.iter().zip(pts) {
-                        f(*id, p);
-                    }
+                let range = self.row(lo[0], hi[0], y, z);
+                for (id, p) in self.ids[range.clone()].iter().zip(&self.pts[range]) {
+                    f(*id, p);
                 }
             }
         }

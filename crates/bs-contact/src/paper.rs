@@ -299,6 +299,61 @@ pub fn build_lists(m: &MasterSurface, d: f64, literal_edge_test: bool) -> Additi
     lists
 }
 
+/// Per-face data for the projection test: a vertex, the unit normal and the three in-plane
+/// inward edge normals with offsets (P projects inside ⇔ `m_k · P ≥ off_k` for k = 0, 1, 2,
+/// since each m_k is perpendicular to the face normal).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct FaceData {
+    a: Point3<f64>,
+    n: Vector3<f64>,
+    m: [Vector3<f64>; 3],
+    off: [f64; 3],
+}
+
+impl FaceData {
+    fn new(m: &MasterSurface, f: usize) -> Self {
+        let t = m.triangles[f];
+        let v = [m.vertices[t[0] as usize], m.vertices[t[1] as usize], m.vertices[t[2] as usize]];
+        let n = m.face_normals[f];
+        let mut mm = [Vector3::zeros(); 3];
+        let mut off = [0.0; 3];
+        for k in 0..3 {
+            mm[k] = n.cross(&(v[(k + 1) % 3] - v[k]));
+            off[k] = mm[k].dot(&v[k].coords);
+        }
+        Self { a: v[0], n, m: mm, off }
+    }
+
+    /// Projection of `p` on the face plane when it lies inside the closed triangle.
+    #[inline]
+    fn project_inside(&self, p: &Point3<f64>) -> Option<Point3<f64>> {
+        let c = &p.coords;
+        if self.m[0].dot(c) >= self.off[0]
+            && self.m[1].dot(c) >= self.off[1]
+            && self.m[2].dot(c) >= self.off[2]
+        {
+            Some(p - self.n * (p - self.a).dot(&self.n))
+        } else {
+            None
+        }
+    }
+}
+
+/// An edge at a node C, seen from C: the other end E, E − C and |E − C|².
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct EdgeAt {
+    edge: u32,
+    dir: Vector3<f64>,
+    len2: f64,
+}
+
+/// A face at a node C with the bisector of its angle at C.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct FaceAt {
+    face: u32,
+    bisector: Vector3<f64>,
+}
+
 /// The paper's contact handler.
 #[derive(Debug, Clone)]
 pub struct PaperContact {
@@ -308,6 +363,16 @@ pub struct PaperContact {
     pub(crate) d: f64,
     pub(crate) d2: f64,
     pub(crate) radius2: Vec<f64>,
+    faces: Vec<FaceData>,
+    /// CSR per node: faces at the node with their bisectors.
+    faces_at_start: Vec<u32>,
+    faces_at: Vec<FaceAt>,
+    /// CSR per node: edges at the node, then the node's additional edges (as A→B).
+    edges_at_start: Vec<u32>,
+    edges_at: Vec<EdgeAt>,
+    /// Start of each edge's segment point A (for additional edges) — the vertex the dir
+    /// starts from.
+    edge_origin: Vec<Point3<f64>>,
 }
 
 impl PaperContact {
@@ -344,7 +409,44 @@ impl PaperContact {
             }
         };
         let radius2 = master.node_radius.iter().map(|r| r * r).collect();
-        Ok(Self { master, grid, lists, d, d2: d * d, radius2 })
+        let faces = (0..master.triangles.len()).map(|f| FaceData::new(&master, f)).collect();
+        let nv = master.vertices.len();
+        let mut faces_at_start = Vec::with_capacity(nv + 1);
+        let mut faces_at = Vec::with_capacity(master.node_faces.len());
+        let mut edges_at_start = Vec::with_capacity(nv + 1);
+        let mut edges_at = Vec::with_capacity(master.node_edges.len());
+        faces_at_start.push(0);
+        edges_at_start.push(0);
+        for c in 0..nv as u32 {
+            for &f in master.faces_of(c) {
+                let t = master.triangles[f as usize];
+                let k = t.iter().position(|&x| x == c).unwrap_or(0);
+                faces_at.push(FaceAt { face: f, bisector: master.bisectors[f as usize][k] });
+            }
+            for &e in master.edges_of(c) {
+                let ab = master.edges[e as usize];
+                let other = if ab[0] == c { ab[1] } else { ab[0] };
+                let dir = master.vertices[other as usize] - master.vertices[c as usize];
+                edges_at.push(EdgeAt { edge: e, dir, len2: dir.norm_squared() });
+            }
+            faces_at_start.push(faces_at.len() as u32);
+            edges_at_start.push(edges_at.len() as u32);
+        }
+        let edge_origin = master.edges.iter().map(|ab| master.vertices[ab[0] as usize]).collect();
+        Ok(Self {
+            master,
+            grid,
+            lists,
+            d,
+            d2: d * d,
+            radius2,
+            faces,
+            faces_at_start,
+            faces_at,
+            edges_at_start,
+            edges_at,
+            edge_origin,
+        })
     }
 
     /// The master surface.
@@ -378,7 +480,8 @@ impl PaperContact {
     #[inline]
     pub fn local_search(&self, c: u32, p: &Point3<f64>) -> Option<Projection> {
         let m = &*self.master;
-        let pc = &m.vertices[c as usize];
+        let ci = c as usize;
+        let pc = &m.vertices[ci];
         let cp = p - pc;
         let mut best_d2 = f64::INFINITY;
         let mut best: Option<(Point3<f64>, Feature)> = None;
@@ -389,54 +492,38 @@ impl PaperContact {
                 best = Some((r, f));
             }
         };
-        if cp.norm_squared() <= self.d2 + self.radius2[c as usize] {
-            for &f in m.faces_of(c) {
-                let t = m.triangles[f as usize];
-                let k = if t[0] == c {
-                    0
-                } else if t[1] == c {
-                    1
-                } else {
-                    2
-                };
-                if cp.dot(&m.bisectors[f as usize][k]) > 0.0 {
-                    let (a, b, cc) = (
-                        &m.vertices[t[0] as usize],
-                        &m.vertices[t[1] as usize],
-                        &m.vertices[t[2] as usize],
-                    );
-                    if let Some(r) =
-                        project_inside_triangle(p, a, b, cc, &m.face_normals[f as usize])
-                    {
-                        offer(r, Feature::Face(f));
-                    }
+        if cp.norm_squared() <= self.d2 + self.radius2[ci] {
+            let fa = &self.faces_at
+                [self.faces_at_start[ci] as usize..self.faces_at_start[ci + 1] as usize];
+            for f in fa {
+                if cp.dot(&f.bisector) > 0.0
+                    && let Some(r) = self.faces[f.face as usize].project_inside(p)
+                {
+                    offer(r, Feature::Face(f.face));
                 }
             }
-            for &e in m.edges_of(c) {
-                let ab = m.edges[e as usize];
-                let other = if ab[0] == c { ab[1] } else { ab[0] };
-                if let Some(r) = project_inside_segment(p, pc, &m.vertices[other as usize]) {
-                    offer(r, Feature::Edge(e));
+            let ea = &self.edges_at
+                [self.edges_at_start[ci] as usize..self.edges_at_start[ci + 1] as usize];
+            for e in ea {
+                let t = cp.dot(&e.dir);
+                if t >= 0.0 && t <= e.len2 {
+                    offer(pc + e.dir * (t / e.len2), Feature::Edge(e.edge));
                 }
             }
             offer(*pc, Feature::Node(c));
         }
         for &e in self.lists.edges_of(c) {
             let ab = m.edges[e as usize];
-            if let Some(r) =
-                project_inside_segment(p, &m.vertices[ab[0] as usize], &m.vertices[ab[1] as usize])
-            {
+            if let Some(r) = project_inside_segment(
+                p,
+                &self.edge_origin[e as usize],
+                &m.vertices[ab[1] as usize],
+            ) {
                 offer(r, Feature::Edge(e));
             }
         }
         for &f in self.lists.faces_of(c) {
-            let t = m.triangles[f as usize];
-            let (a, b, cc) = (
-                &m.vertices[t[0] as usize],
-                &m.vertices[t[1] as usize],
-                &m.vertices[t[2] as usize],
-            );
-            if let Some(r) = project_inside_triangle(p, a, b, cc, &m.face_normals[f as usize]) {
+            if let Some(r) = self.faces[f as usize].project_inside(p) {
                 offer(r, Feature::Face(f));
             }
         }
