@@ -47,6 +47,19 @@ struct Anchor {
     skip_margin2: f64,
 }
 
+/// Most master nodes kept in a slave's neighbour list.
+const LIST: usize = 16;
+
+/// Per-slave neighbour list ("Verlet list" with a skin): the master nodes nearest to the
+/// list's anchor; every node not in it is at least `rho` from the anchor.
+#[derive(Debug, Clone, Copy)]
+struct NodeList {
+    at: Point3<f64>,
+    rho: f64,
+    len: u8,
+    nodes: [u32; LIST],
+}
+
 /// Shrink factor applied to certified margins (guards against rounding).
 const SAFETY: f64 = 1.0 - 1e-9;
 
@@ -60,6 +73,9 @@ pub struct CoherentContact {
     plane_start: Vec<u32>,
     planes: Vec<(Vector3<f64>, f64)>,
     anchors: Vec<Option<Anchor>>,
+    lists: Vec<Option<NodeList>>,
+    /// Radius beyond the closest node out to which neighbour lists are gathered.
+    skin: f64,
     /// Absolute slack subtracted from the inside margin: 1e-12 of the model size, far above
     /// the rounding of the verdict's dot products.
     abs_slack: f64,
@@ -72,6 +88,8 @@ pub struct CoherentContact {
 pub struct CoherenceStats {
     /// Queries that ran the global bucket search.
     pub global: u64,
+    /// Queries that found the closest node in the slave's neighbour list.
+    pub list: u64,
     /// Queries that reused the closest node and ran only the local search.
     pub local: u64,
     /// Queries certified inside without any search.
@@ -121,11 +139,14 @@ impl CoherentContact {
             plane_start.push(planes.len() as u32);
         }
         let abs_slack = 1e-12 * m.size;
+        let skin = m.max_edge;
         Self {
             paper,
             plane_start,
             planes,
             anchors: Vec::new(),
+            lists: Vec::new(),
+            skin,
             abs_slack,
             stats: CoherenceStats::default(),
         }
@@ -144,6 +165,7 @@ impl CoherentContact {
     /// Forgets all cached state.
     pub fn reset(&mut self) {
         self.anchors.clear();
+        self.lists.clear();
         self.stats = CoherenceStats::default();
     }
 
@@ -185,11 +207,75 @@ impl CoherentContact {
     }
 }
 
+impl CoherentContact {
+    /// Gathers the neighbour list of a slave at `p` whose closest node is at distance `d1`:
+    /// the (at most [`LIST`]) nodes nearest to `p` within `d1 + skin`.
+    fn gather(&self, p: &Point3<f64>, d1: f64) -> NodeList {
+        let reach = d1 + self.skin;
+        let mut found: [(f64, u32); 64] = [(f64::INFINITY, 0); 64];
+        let mut n = 0usize;
+        let mut overflow = f64::INFINITY;
+        self.paper.grid.for_each_in_box(p, reach, |id, q| {
+            let d = (q - p).norm();
+            if d >= reach {
+                return;
+            }
+            if n < found.len() {
+                found[n] = (d, id);
+                n += 1;
+            } else {
+                overflow = overflow.min(d);
+            }
+        });
+        let found = &mut found[..n];
+        found.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        let keep = n.min(LIST);
+        // Nodes not kept: beyond `reach`, the overflowed ones, the sorted tail.
+        let mut rho = reach.min(overflow);
+        if keep < n {
+            rho = rho.min(found[keep].0);
+        }
+        let mut nodes = [0u32; LIST];
+        for (k, f) in found[..keep].iter().enumerate() {
+            nodes[k] = f.1;
+        }
+        NodeList { at: *p, rho: rho * SAFETY, len: keep as u8, nodes }
+    }
+
+    /// Exact closest node from the slave's neighbour list, with a lower bound on the
+    /// distance to every other node; `None` when the list cannot certify it or on an exact
+    /// tie (then the bucket search decides, as in the paper's handler).
+    #[inline]
+    fn nearest_in_list(&self, l: &NodeList, p: &Point3<f64>) -> Option<(u32, f64)> {
+        let delta = (p - l.at).norm() / SAFETY;
+        let verts = &self.paper.master.vertices;
+        let mut best = (u32::MAX, f64::INFINITY);
+        let mut next = f64::INFINITY;
+        for &id in &l.nodes[..l.len as usize] {
+            let d2 = (verts[id as usize] - p).norm_squared();
+            if d2 < best.1 {
+                next = best.1;
+                best = (id, d2);
+            } else if d2 < next {
+                next = d2;
+            }
+        }
+        let d1 = best.1.sqrt();
+        // The true closest node N has |A N| ≤ |A P| + |P N| ≤ δ + d1 + ... ≤ d1 + 2δ.
+        let certified = d1 + 2.0 * delta < l.rho;
+        if !certified || next == best.1 {
+            return None;
+        }
+        Some((best.0, next.sqrt().min(l.rho - delta)))
+    }
+}
+
 impl ClosestPoint for CoherentContact {
     #[inline]
     fn closest(&mut self, slave: usize, p: &Point3<f64>) -> Option<Projection> {
         if slave >= self.anchors.len() {
             self.anchors.resize(slave + 1, None);
+            self.lists.resize(slave + 1, None);
         }
         if let Some(a) = self.anchors[slave] {
             let delta2 = (p - a.at).norm_squared();
@@ -206,11 +292,21 @@ impl ClosestPoint for CoherentContact {
                 return proj;
             }
         }
+        if let Some(l) = self.lists[slave]
+            && let Some((c, other_lb)) = self.nearest_in_list(&l, p)
+        {
+            self.stats.list += 1;
+            let proj = self.paper.local_search(c, p);
+            let outside = proj.is_some_and(|q| q.outside);
+            self.anchors[slave] = Some(self.anchor_at(p, c, other_lb * SAFETY, outside));
+            return proj;
+        }
         self.stats.global += 1;
         let n = self.paper.grid.nearest(p, true)?;
         let proj = self.paper.local_search(n.id, p);
         let outside = proj.is_some_and(|q| q.outside);
         self.anchors[slave] = Some(self.anchor_at(p, n.id, n.other_lb * SAFETY, outside));
+        self.lists[slave] = Some(self.gather(p, n.d2.sqrt()));
         proj
     }
 
