@@ -19,6 +19,15 @@
 //!   says inside, whichever wins, so the paper applies no correction; if also δ is within
 //!   the node margin (same C, same candidates) nothing needs computing at all.
 //!
+//! * **Neighbour list.** When the node margin is exceeded, the closest node is looked up in
+//!   the slave's neighbour list instead of the bucket grid: at its last bucket search (at
+//!   A') the slave kept the ≤ 16 nodes nearest to A' within (closest distance + one longest
+//!   edge), and ρ, a bound such that every node not in the list is at least ρ from A'. At P
+//!   with δ' = |P − A'|, let d₁ be the distance to the nearest list node; the true closest
+//!   node N has |A'N| ≤ δ' + |PN| ≤ δ' + d₁, so if δ' + d₁ < ρ it is in the list and the list
+//!   minimum is exact. An exact tie in the list falls back to the bucket search, so the node
+//!   chosen is always the one the paper handler's search returns.
+//!
 //! Both margins are shrunk by a relative 1e-9 (the inside margin also by 1e-12 of the model
 //! size) so that rounding can never make them
 //! optimistic. Hence every correction equals the paper handler's, on every step (tested
@@ -261,8 +270,8 @@ impl CoherentContact {
             }
         }
         let d1 = best.1.sqrt();
-        // The true closest node N has |A N| ≤ |A P| + |P N| ≤ δ + d1 + ... ≤ d1 + 2δ.
-        let certified = d1 + 2.0 * delta < l.rho;
+        // The true closest node N has |A N| ≤ |A P| + |P N| ≤ δ + d1 < ρ: it is in the list.
+        let certified = d1 + delta < l.rho;
         if !certified || next == best.1 {
             return None;
         }
