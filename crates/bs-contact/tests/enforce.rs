@@ -127,6 +127,10 @@ fn coherent_matches_paper_every_step_of_a_random_walk() {
             st.global * 5 < st.local + st.skipped,
             "coherence should avoid most global searches: {st:?}"
         );
+        assert!(
+            st.list > 0 && st.skipped > 0 && st.local > 0,
+            "every coherent path is exercised: {st:?}"
+        );
     }
 }
 
