@@ -32,6 +32,21 @@
 //! assert_eq!(report.nodes_in_contact, 1); // node 1 was outside and is now on the skull
 //! assert_eq!(positions[0], Point3::new(0.0, 0.0, 0.5)); // inside: untouched
 //! ```
+//!
+//! Choosing the algorithm by name (as the CLI's `--algorithm` does) and computing gaps:
+//!
+//! ```
+//! use bs_contact::{gap, shapes, Algorithm, Handler, MasterSurface, PaperParams};
+//! use bs_mesh::Point3;
+//!
+//! let skull = shapes::sphere(200);
+//! let algorithm: Algorithm = "coherent".parse().unwrap();
+//! let mut handler = Handler::new(algorithm, &skull, PaperParams::default()).unwrap();
+//! let master = MasterSurface::new(&skull).unwrap();
+//! let rows = gap(&mut handler, &master, &[Point3::new(0.0, 0.0, 0.0)]);
+//! // The centre of the unit sphere mesh: inside, a bit less than 1 from the skull.
+//! assert!(!rows[0].outside && rows[0].signed_distance > 0.95 && rows[0].signed_distance < 1.0);
+//! ```
 
 mod brute;
 mod coherent;
@@ -69,5 +84,114 @@ impl ClosestPoint for NoContact {
 
     fn name(&self) -> &'static str {
         "none"
+    }
+}
+
+/// The contact algorithms selectable by name (`paper`, `coherent`, `parry`, `brute-force`,
+/// `none`), e.g. from a CLI flag or a scene file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Algorithm {
+    /// [`PaperContact`].
+    Paper,
+    /// [`CoherentContact`] (default: same corrections as the paper's, fastest).
+    #[default]
+    Coherent,
+    /// [`ParryContact`].
+    Parry,
+    /// [`BruteForce`].
+    BruteForce,
+    /// [`NoContact`].
+    None,
+}
+
+impl Algorithm {
+    /// All names accepted by [`FromStr`](std::str::FromStr).
+    pub const NAMES: [&'static str; 5] = ["paper", "coherent", "parry", "brute-force", "none"];
+}
+
+impl std::str::FromStr for Algorithm {
+    type Err = ContactError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Ok(match s {
+            "paper" => Self::Paper,
+            "coherent" => Self::Coherent,
+            "parry" => Self::Parry,
+            "brute-force" => Self::BruteForce,
+            "none" => Self::None,
+            other => {
+                return Err(ContactError::InvalidParameter(format!(
+                    "unknown contact algorithm '{other}'; expected one of {}",
+                    Self::NAMES.join(", ")
+                )));
+            }
+        })
+    }
+}
+
+/// A handler chosen at run time; dispatches to the selected algorithm.
+#[derive(Debug)]
+pub enum Handler {
+    /// The paper's algorithm.
+    Paper(PaperContact),
+    /// The paper's algorithm with temporal coherence.
+    Coherent(CoherentContact),
+    /// parry3d-f64 baseline.
+    Parry(ParryContact),
+    /// Brute force.
+    BruteForce(BruteForce),
+    /// No contact.
+    None(NoContact),
+}
+
+impl Handler {
+    /// Validates `skull` and builds the selected handler (`params` apply to the paper and
+    /// coherent handlers).
+    pub fn new(
+        algorithm: Algorithm,
+        skull: &bs_mesh::TriSurface,
+        params: PaperParams,
+    ) -> Result<Self, ContactError> {
+        let master = std::sync::Arc::new(MasterSurface::new(skull)?);
+        Ok(match algorithm {
+            Algorithm::Paper => Self::Paper(PaperContact::from_master(master, params)?),
+            Algorithm::Coherent => Self::Coherent(CoherentContact::from_master(master, params)?),
+            Algorithm::Parry => Self::Parry(ParryContact::from_master(&master)?),
+            Algorithm::BruteForce => Self::BruteForce(BruteForce::from_master(master)),
+            Algorithm::None => Self::None(NoContact),
+        })
+    }
+}
+
+impl ClosestPoint for Handler {
+    #[inline]
+    fn closest(&mut self, slave: usize, p: &bs_mesh::Point3<f64>) -> Option<Projection> {
+        match self {
+            Self::Paper(h) => h.closest(slave, p),
+            Self::Coherent(h) => h.closest(slave, p),
+            Self::Parry(h) => h.closest(slave, p),
+            Self::BruteForce(h) => h.closest(slave, p),
+            Self::None(h) => h.closest(slave, p),
+        }
+    }
+
+    fn reach(&self) -> f64 {
+        match self {
+            Self::Paper(h) => h.reach(),
+            Self::Coherent(h) => h.reach(),
+            Self::Parry(h) => h.reach(),
+            Self::BruteForce(h) => h.reach(),
+            Self::None(h) => h.reach(),
+        }
+    }
+
+    fn name(&self) -> &'static str {
+        match self {
+            Self::Paper(h) => h.name(),
+            Self::Coherent(h) => h.name(),
+            Self::Parry(h) => h.name(),
+            Self::BruteForce(h) => h.name(),
+            Self::None(h) => h.name(),
+        }
     }
 }
