@@ -98,12 +98,14 @@ impl BucketGrid {
     /// Bucket of a point, clamped to the grid.
     #[inline]
     pub fn cell_of(&self, p: &Point3<f64>) -> [usize; 3] {
-        let mut c = [0usize; 3];
-        for k in 0..3 {
-            let x = ((p[k] - self.origin[k]) * self.inv_h[k]).floor();
-            c[k] = if x <= 0.0 || x.is_nan() { 0 } else { (x as usize).min(self.dims[k] - 1) };
-        }
-        c
+        [self.index_on(0, p.x), self.index_on(1, p.y), self.index_on(2, p.z)]
+    }
+
+    /// Bucket index of coordinate `x` on `axis`, clamped to the grid.
+    #[inline]
+    fn index_on(&self, axis: usize, x: f64) -> usize {
+        let i = ((x - self.origin[axis]) * self.inv_h[axis]).floor();
+        if i <= 0.0 || i.is_nan() { 0 } else { (i as usize).min(self.dims[axis] - 1) }
     }
 
     #[inline]
@@ -216,8 +218,8 @@ impl BucketGrid {
                     continue;
                 }
                 let w = rest.sqrt();
-                let xa = self.cell_of(&Point3::new(p.x - w, p.y, p.z))[0];
-                let xb = self.cell_of(&Point3::new(p.x + w, p.y, p.z))[0];
+                let xa = self.index_on(0, p.x - w);
+                let xb = self.index_on(0, p.x + w);
                 if z.abs_diff(c[2]) <= r && y.abs_diff(c[1]) <= r {
                     // Skip the part of the row inside the block.
                     let (bl, bh) = (c[0].saturating_sub(r), c[0] + r);
