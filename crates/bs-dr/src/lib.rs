@@ -49,6 +49,7 @@ pub mod forces;
 pub mod loads;
 pub mod model;
 pub mod newton;
+pub mod post;
 pub mod solver;
 
 pub use contact::{Contact, ContactReport, NoContact};
@@ -57,6 +58,7 @@ pub use forces::{Inversion, Workspace};
 pub use loads::{LoadError, Loads, ramp};
 pub use model::{Model, ModelError, ModelOptions, Solid, TetFormulation};
 pub use newton::{Newton, NewtonParams};
+pub use post::ElementMeasures;
 pub use solver::{Progress, Report, Solution, SolveError, Solver};
 
 #[cfg(test)]
