@@ -293,9 +293,10 @@ pub fn run(file: &Path, json: bool) -> Result<ExitCode, io::MeshIoError> {
         MeshFile::Surface(s) => surface_report(file, &s),
     };
     if json {
-        println!("{}", serde_json::to_string_pretty(&report).expect("report serialises"));
+        let json = serde_json::to_string_pretty(&report).expect("report serialises");
+        crate::emit(&format!("{json}\n"));
     } else {
-        print!("{}", text(&report));
+        crate::emit(&text(&report));
     }
     Ok(if report.valid { ExitCode::SUCCESS } else { ExitCode::FAILURE })
 }

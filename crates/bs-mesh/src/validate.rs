@@ -173,10 +173,8 @@ impl Mesh {
                 });
                 continue;
             }
-            if finite {
-                if let Some(e) = self.check_shape(index) {
-                    r.errors.push(e);
-                }
+            if let Some(e) = finite.then(|| self.check_shape(index)).flatten() {
+                r.errors.push(e);
             }
         }
         for (name, set) in &self.node_sets {

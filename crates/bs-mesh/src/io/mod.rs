@@ -341,11 +341,6 @@ impl<'a> Lines<'a> {
         self.lines.peek().map(|&(i, l)| (i + 1, l))
     }
 
-    /// The number of the last line returned (0 before the first).
-    pub(crate) fn line_number(&self) -> usize {
-        self.last
-    }
-
     /// An error at line `line`.
     pub(crate) fn error(&self, line: usize, message: impl Into<String>) -> ParseError {
         ParseError::new(self.file, Location::Line(line), message)

@@ -1,0 +1,495 @@
+//! Scene files: what a user (or a validation script) writes to describe one brain-shift
+//! computation. The keys are a contract: extend, never rename.
+//!
+//! ```toml
+//! units = "mm"
+//! [mesh]
+//! file = "brain.inp"
+//! element = "t4anp"
+//! [[region]]
+//! elset = "BRAIN"
+//! material = { model = "neo-hookean", youngs_modulus = 3000.0, poisson_ratio = 0.49, density = 1000.0 }
+//! [[boundary]]
+//! nset = "FIXED"
+//! fix = ["x", "y", "z"]
+//! [[boundary]]
+//! nset = "CRANIOTOMY"
+//! displacement = { x = 0.0, y = 0.0, z = -8.0 }
+//! [contact]
+//! skull = "skull.stl"
+//! algorithm = "paper"
+//! [solver]
+//! kind = "dr"
+//! tolerance = 1e-3
+//! ```
+//!
+//! Paths are relative to the scene file. Unknown keys are errors (a misspelt key must not be
+//! silently ignored).
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+/// Length unit of the mesh files. Stresses and moduli are always in Pa.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Units {
+    /// Millimetres.
+    Mm,
+    /// Metres.
+    M,
+}
+
+impl Units {
+    /// The unit's symbol.
+    pub fn symbol(self) -> &'static str {
+        match self {
+            Units::Mm => "mm",
+            Units::M => "m",
+        }
+    }
+}
+
+/// Element technology.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ElementChoice {
+    /// Linear tetrahedron.
+    T4,
+    /// Linear tetrahedron with average nodal pressure (locking-free).
+    T4anp,
+    /// Mean-strain hexahedron with hourglass control.
+    H8,
+}
+
+/// Constitutive model names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MaterialModel {
+    /// Decoupled Neo-Hookean.
+    NeoHookean,
+    /// St Venant–Kirchhoff ("linear elastic" in a Total Lagrangian code).
+    Svk,
+    /// One-term Ogden.
+    Ogden,
+}
+
+/// A material: moduli from (E, ν) or (μ, κ), in Pa; density in kg/m³.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Material {
+    /// Constitutive model.
+    pub model: MaterialModel,
+    /// Young's modulus E [Pa].
+    pub youngs_modulus: Option<f64>,
+    /// Poisson's ratio ν.
+    pub poisson_ratio: Option<f64>,
+    /// Shear modulus μ [Pa] (alternative to E, ν).
+    pub shear_modulus: Option<f64>,
+    /// Bulk modulus κ [Pa] (alternative to E, ν).
+    pub bulk_modulus: Option<f64>,
+    /// Ogden exponent α (Ogden only).
+    pub alpha: Option<f64>,
+    /// Mass density [kg/m³]; default 1000.
+    #[serde(default = "default_density")]
+    pub density: f64,
+}
+
+fn default_density() -> f64 {
+    1000.0
+}
+
+/// Shear and bulk moduli resolved from a [`Material`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Moduli {
+    /// Shear modulus μ [Pa].
+    pub mu: f64,
+    /// Bulk modulus κ [Pa].
+    pub kappa: f64,
+}
+
+impl Material {
+    /// Resolves (μ, κ) from whichever pair was given, checking ranges.
+    pub fn moduli(&self) -> Result<Moduli, String> {
+        match (self.youngs_modulus, self.poisson_ratio, self.shear_modulus, self.bulk_modulus) {
+            (Some(e), Some(nu), None, None) => {
+                if !(e > 0.0 && e.is_finite()) {
+                    return Err(format!("youngs_modulus must be positive, got {e}"));
+                }
+                if !(nu > -1.0 && nu < 0.5) {
+                    return Err(format!(
+                        "poisson_ratio must lie in (-1, 0.5), got {nu}; brain tissue is nearly \
+                         incompressible, e.g. 0.49"
+                    ));
+                }
+                Ok(Moduli { mu: e / (2.0 * (1.0 + nu)), kappa: e / (3.0 * (1.0 - 2.0 * nu)) })
+            }
+            (None, None, Some(mu), Some(kappa)) => {
+                if !(mu > 0.0 && kappa > 0.0 && mu.is_finite() && kappa.is_finite()) {
+                    return Err(format!(
+                        "shear_modulus and bulk_modulus must be positive, got {mu} and {kappa}"
+                    ));
+                }
+                Ok(Moduli { mu, kappa })
+            }
+            _ => Err("give either youngs_modulus and poisson_ratio, or shear_modulus and \
+                      bulk_modulus (in Pa)"
+                .into()),
+        }
+    }
+}
+
+/// A region: an element set and its material.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Region {
+    /// Element set name in the mesh file; `"*"` means every element.
+    pub elset: String,
+    /// The material.
+    pub material: Material,
+}
+
+/// A displacement component.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Component {
+    /// x
+    X,
+    /// y
+    Y,
+    /// z
+    Z,
+}
+
+impl Component {
+    /// 0, 1 or 2.
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// Final prescribed displacement values; unnamed components stay free.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Displacement {
+    /// x component.
+    pub x: Option<f64>,
+    /// y component.
+    pub y: Option<f64>,
+    /// z component.
+    pub z: Option<f64>,
+}
+
+impl Displacement {
+    /// As an array of optional components.
+    pub fn components(&self) -> [Option<f64>; 3] {
+        [self.x, self.y, self.z]
+    }
+}
+
+/// A boundary condition on a node set (or from a file).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Boundary {
+    /// Node set name in the mesh file.
+    pub nset: Option<String>,
+    /// Components held at zero.
+    pub fix: Option<Vec<Component>>,
+    /// Final displacement on the 3-4-5 ramp.
+    pub displacement: Option<Displacement>,
+    /// CSV with `node_id,ux,uy,uz` per prescribed node (relative to the scene file).
+    pub displacement_file: Option<PathBuf>,
+}
+
+/// Contact handler names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Algorithm {
+    /// The paper's algorithm.
+    Paper,
+    /// The paper's algorithm with temporal coherence.
+    Coherent,
+    /// parry3d's closest-point query.
+    Parry,
+    /// Every face, every time (reference).
+    BruteForce,
+}
+
+/// The rigid skull.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Contact {
+    /// Closed, outward-oriented triangle surface (.stl, .obj, .off).
+    pub skull: PathBuf,
+    /// Handler; default `paper`.
+    #[serde(default = "default_algorithm")]
+    pub algorithm: Algorithm,
+}
+
+fn default_algorithm() -> Algorithm {
+    Algorithm::Paper
+}
+
+/// Solver kinds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SolverKind {
+    /// Dynamic Relaxation.
+    Dr,
+    /// Static Newton–Raphson (reference).
+    Newton,
+}
+
+/// Solver settings.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Solver {
+    /// Default `dr`.
+    #[serde(default = "default_solver")]
+    pub kind: SolverKind,
+    /// Error-estimate tolerance in mesh length units; default 1e-3.
+    #[serde(default = "default_tolerance")]
+    pub tolerance: f64,
+}
+
+fn default_solver() -> SolverKind {
+    SolverKind::Dr
+}
+
+fn default_tolerance() -> f64 {
+    1e-3
+}
+
+impl Default for Solver {
+    fn default() -> Self {
+        Solver { kind: default_solver(), tolerance: default_tolerance() }
+    }
+}
+
+/// The `[mesh]` table.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshSection {
+    /// Volume mesh file (.inp, .msh, .vtu, .vtk), relative to the scene file.
+    pub file: PathBuf,
+    /// Element technology; default t4anp for tets, h8 for hexes.
+    pub element: Option<ElementChoice>,
+}
+
+/// A parsed scene, paths resolved against the scene file's folder.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// Length unit of the mesh files.
+    pub units: Units,
+    /// The brain mesh.
+    pub mesh: MeshSection,
+    /// Material regions.
+    #[serde(rename = "region", default)]
+    pub regions: Vec<Region>,
+    /// Boundary conditions.
+    #[serde(rename = "boundary", default)]
+    pub boundaries: Vec<Boundary>,
+    /// The skull; none means no contact.
+    pub contact: Option<Contact>,
+    /// Solver settings.
+    #[serde(default)]
+    pub solver: Solver,
+}
+
+/// A scene that could not be read, naming the file and, where known, the key.
+#[derive(Debug)]
+pub struct SceneError {
+    /// The scene file.
+    pub file: PathBuf,
+    /// What is wrong and how to fix it.
+    pub message: String,
+}
+
+impl fmt::Display for SceneError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.file.display(), self.message)
+    }
+}
+
+impl std::error::Error for SceneError {}
+
+impl Scene {
+    /// Reads and checks a scene file; relative paths become relative to its folder.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let err = |message: String| SceneError { file: path.to_path_buf(), message };
+        let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read: {e}")))?;
+        let mut scene = Scene::parse(&text).map_err(err)?;
+        let dir = path.parent().unwrap_or(Path::new(""));
+        scene.mesh.file = dir.join(&scene.mesh.file);
+        if let Some(c) = &mut scene.contact {
+            c.skull = dir.join(&c.skull);
+        }
+        for b in &mut scene.boundaries {
+            if let Some(f) = &mut b.displacement_file {
+                *f = dir.join(&*f);
+            }
+        }
+        Ok(scene)
+    }
+
+    /// Parses scene text and checks what the types cannot (ranges, exclusive keys).
+    pub fn parse(text: &str) -> Result<Scene, String> {
+        let scene: Scene = toml::from_str(text).map_err(|e| {
+            // toml's message names the line, column and key; keep it whole.
+            e.to_string().trim_end().to_string()
+        })?;
+        if scene.regions.is_empty() {
+            return Err(
+                "no [[region]]: give at least one, e.g. elset = \"*\" with a material".into()
+            );
+        }
+        for (i, r) in scene.regions.iter().enumerate() {
+            let m = &r.material;
+            m.moduli().map_err(|e| {
+                format!("[[region]] #{} (elset '{}'), material: {e}", i + 1, r.elset)
+            })?;
+            if !(m.density > 0.0 && m.density.is_finite()) {
+                return Err(format!(
+                    "[[region]] #{} material.density must be positive (kg/m³)",
+                    i + 1
+                ));
+            }
+            match (m.model, m.alpha) {
+                (MaterialModel::Ogden, None) => {
+                    return Err(format!(
+                        "[[region]] #{}: model = \"ogden\" needs alpha (brain: alpha = -4.7)",
+                        i + 1
+                    ));
+                }
+                (MaterialModel::NeoHookean | MaterialModel::Svk, Some(_)) => {
+                    return Err(format!(
+                        "[[region]] #{}: alpha is only used by model = \"ogden\"",
+                        i + 1
+                    ));
+                }
+                _ => {}
+            }
+        }
+        for (i, b) in scene.boundaries.iter().enumerate() {
+            let given = [b.fix.is_some(), b.displacement.is_some(), b.displacement_file.is_some()];
+            if given.iter().filter(|&&g| g).count() != 1 {
+                return Err(format!(
+                    "[[boundary]] #{}: give exactly one of fix, displacement or displacement_file",
+                    i + 1
+                ));
+            }
+            if b.displacement_file.is_none() && b.nset.is_none() {
+                return Err(format!(
+                    "[[boundary]] #{}: nset is required with fix or displacement",
+                    i + 1
+                ));
+            }
+            if let Some(d) = &b.displacement {
+                if d.components().iter().all(Option::is_none) {
+                    return Err(format!(
+                        "[[boundary]] #{}: displacement names no component (x, y or z)",
+                        i + 1
+                    ));
+                }
+                if d.components().iter().flatten().any(|v| !v.is_finite()) {
+                    return Err(format!(
+                        "[[boundary]] #{}: displacement values must be finite",
+                        i + 1
+                    ));
+                }
+            }
+        }
+        if !(scene.solver.tolerance > 0.0 && scene.solver.tolerance.is_finite()) {
+            return Err(format!(
+                "[solver] tolerance must be positive (mesh length units), got {}",
+                scene.solver.tolerance
+            ));
+        }
+        Ok(scene)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+units = "mm"
+[mesh]
+file = "brain.inp"
+element = "t4anp"
+[[region]]
+elset = "BRAIN"
+material = { model = "neo-hookean", youngs_modulus = 3000.0, poisson_ratio = 0.49, density = 1000.0 }
+[[boundary]]
+nset = "FIXED"
+fix = ["x", "y", "z"]
+[[boundary]]
+nset = "CRANIOTOMY"
+displacement = { x = 0.0, y = 0.0, z = -8.0 }
+[contact]
+skull = "skull.stl"
+algorithm = "paper"
+[solver]
+kind = "dr"
+tolerance = 1e-3
+"#;
+
+    #[test]
+    fn the_documented_example_parses() {
+        let s = Scene::parse(GOOD).unwrap();
+        assert_eq!(s.units, Units::Mm);
+        assert_eq!(s.mesh.element, Some(ElementChoice::T4anp));
+        let m = s.regions[0].material.moduli().unwrap();
+        // E = 3000, nu = 0.49: mu = E / 2(1+nu), kappa = E / 3(1-2nu).
+        approx::assert_relative_eq!(m.mu, 3000.0 / 2.98, epsilon = 1e-12);
+        approx::assert_relative_eq!(m.kappa, 3000.0 / 0.06, epsilon = 1e-9);
+        assert_eq!(
+            s.boundaries[1].displacement.unwrap().components(),
+            [Some(0.0), Some(0.0), Some(-8.0)]
+        );
+        assert_eq!(s.contact.unwrap().algorithm, Algorithm::Paper);
+        assert_eq!(s.solver, Solver { kind: SolverKind::Dr, tolerance: 1e-3 });
+    }
+
+    #[test]
+    fn a_misspelt_key_is_an_error_naming_it_and_its_line() {
+        let bad = GOOD.replace("tolerance = 1e-3", "tolerence = 1e-3");
+        let e = Scene::parse(&bad).unwrap_err();
+        assert!(e.contains("tolerence"), "{e}");
+        assert!(e.contains("line 20"), "{e}");
+    }
+
+    #[test]
+    fn range_and_exclusivity_mistakes_are_errors() {
+        let cases = [
+            ("poisson_ratio = 0.49", "poisson_ratio = 0.5", "poisson_ratio must lie in (-1, 0.5)"),
+            ("youngs_modulus = 3000.0", "youngs_modulus = -3.0", "youngs_modulus must be positive"),
+            ("fix = [\"x\", \"y\", \"z\"]", "fix = [\"x\", \"w\"]", "unknown variant `w`"),
+            ("units = \"mm\"", "units = \"cm\"", "unknown variant `cm`"),
+            ("kind = \"dr\"", "kind = \"explicit\"", "unknown variant `explicit`"),
+            ("tolerance = 1e-3", "tolerance = 0.0", "tolerance must be positive"),
+            ("z = -8.0 }", "z = -8.0 }\nfix = [\"x\"]", "exactly one of fix, displacement"),
+            ("model = \"neo-hookean\"", "model = \"ogden\"", "needs alpha"),
+        ];
+        for (from, to, expect) in cases {
+            let e = Scene::parse(&GOOD.replace(from, to)).unwrap_err();
+            assert!(e.contains(expect), "{to}: {e}");
+        }
+    }
+
+    #[test]
+    fn defaults_apply_when_optional_tables_are_missing() {
+        let s = Scene::parse(
+            "units = \"m\"\n[mesh]\nfile = \"a.msh\"\n[[region]]\nelset = \"*\"\n\
+             material = { model = \"svk\", shear_modulus = 1000.0, bulk_modulus = 50000.0 }\n",
+        )
+        .unwrap();
+        assert_eq!(s.solver, Solver::default());
+        assert_eq!(s.contact, None);
+        assert_eq!(s.regions[0].material.density, 1000.0);
+        assert_eq!(s.units, Units::M);
+    }
+}

@@ -1,0 +1,405 @@
+//! The master (skull) surface with everything the handlers precompute: validated topology,
+//! edges with their two faces, node→faces and node→edges adjacency, face / edge / node
+//! normals, angle bisectors, node radii.
+
+use std::collections::HashMap;
+
+use bs_mesh::TriSurface;
+use nalgebra::{Point3, Vector3};
+
+use crate::ContactError;
+use crate::geometry::{TriRegion, corner_angle, triangle_normal};
+
+/// How the normal at a node is formed from the normals of the faces around it.
+///
+/// The paper defines edge and node normals as "the sum of the normal vectors of adjacent
+/// faces". At an edge both readings coincide (two faces, each with the same weight). At a
+/// node the plain sum of unit normals can give the wrong inside/outside verdict at
+/// saddle-shaped vertices of a non-convex surface; weighting each face normal by the
+/// face's angle at the node (Bærentzen & Aanæs, "Signed distance computation using the
+/// angle weighted pseudonormal", 2005) is provably correct for every closest point. Both
+/// are sums of adjacent face normals; the angle-weighted one is the default.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum NodeNormalRule {
+    /// Sum of the unit normals of the faces around the node, each weighted by its corner
+    /// angle at the node (default; exact inside/outside verdict).
+    #[default]
+    AngleWeighted,
+    /// Plain sum of the unit normals of the faces around the node (the paper's literal
+    /// wording).
+    PlainSum,
+}
+
+/// A closest-point feature of the master surface.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Feature {
+    /// A master node (vertex index).
+    Node(u32),
+    /// A master edge (index into [`MasterSurface::edges`]).
+    Edge(u32),
+    /// A master face (triangle index).
+    Face(u32),
+}
+
+/// A validated, outward-oriented closed triangle surface with precomputed adjacency and
+/// normals. Shared by all handlers.
+#[derive(Debug, Clone)]
+pub struct MasterSurface {
+    /// Vertex coordinates.
+    pub vertices: Vec<Point3<f64>>,
+    /// Triangles, counter-clockwise seen from outside.
+    pub triangles: Vec<[u32; 3]>,
+    /// Unique edges `[a, b]` with `a < b`.
+    pub edges: Vec<[u32; 2]>,
+    /// The two faces of each edge.
+    pub edge_faces: Vec<[u32; 2]>,
+    /// For each face, the edge index of its sides `v0→v1`, `v1→v2`, `v2→v0`.
+    pub face_edges: Vec<[u32; 3]>,
+    /// Unit outward normal of each face.
+    pub face_normals: Vec<Vector3<f64>>,
+    /// Outward edge normal: sum of the unit normals of its two faces.
+    pub edge_normals: Vec<Vector3<f64>>,
+    /// Outward node normal (see [`NodeNormalRule`]).
+    pub node_normals: Vec<Vector3<f64>>,
+    /// Unit bisector of the angle at each corner of each face.
+    pub bisectors: Vec<[Vector3<f64>; 3]>,
+    /// Radius of influence of each node: the longest edge containing it (0 if unused).
+    pub node_radius: Vec<f64>,
+    /// CSR offsets of node→faces.
+    pub node_faces_start: Vec<u32>,
+    /// CSR list of node→faces.
+    pub node_faces: Vec<u32>,
+    /// CSR offsets of node→edges.
+    pub node_edges_start: Vec<u32>,
+    /// CSR list of node→edges.
+    pub node_edges: Vec<u32>,
+    /// Longest edge length.
+    pub max_edge: f64,
+    /// Longest projection of an edge on each axis.
+    pub max_edge_projection: Vector3<f64>,
+    /// Diagonal of the bounding box (the model size used for tolerances).
+    pub size: f64,
+    /// The node normal rule used.
+    pub node_rule: NodeNormalRule,
+}
+
+impl MasterSurface {
+    /// Validates `surface` (closed, edge- and vertex-manifold, consistently and outward
+    /// oriented, no degenerate triangles, finite coordinates) and precomputes adjacency and
+    /// normals with the default (angle-weighted) node normal rule.
+    pub fn new(surface: &TriSurface) -> Result<Self, ContactError> {
+        Self::with_rule(surface, NodeNormalRule::default())
+    }
+
+    /// As [`new`](Self::new) with an explicit node normal rule.
+    pub fn with_rule(
+        surface: &TriSurface,
+        node_rule: NodeNormalRule,
+    ) -> Result<Self, ContactError> {
+        let nv = surface.vertices.len();
+        if surface.triangles.is_empty() {
+            return Err(ContactError::Empty);
+        }
+        for (i, v) in surface.vertices.iter().enumerate() {
+            if !(v.x.is_finite() && v.y.is_finite() && v.z.is_finite()) {
+                return Err(ContactError::NonFinite { vertex: i });
+            }
+        }
+        let mut triangles = Vec::with_capacity(surface.triangles.len());
+        for (t, tri) in surface.triangles.iter().enumerate() {
+            for &v in tri {
+                if v >= nv {
+                    return Err(ContactError::VertexOutOfRange {
+                        triangle: t,
+                        vertex: v,
+                        vertex_count: nv,
+                    });
+                }
+            }
+            let v = &surface.vertices;
+            let (n, area) = triangle_normal(&v[tri[0]], &v[tri[1]], &v[tri[2]]);
+            let scale =
+                (v[tri[1]] - v[tri[0]]).norm_squared().max((v[tri[2]] - v[tri[0]]).norm_squared());
+            if tri[0] == tri[1]
+                || tri[1] == tri[2]
+                || tri[0] == tri[2]
+                || area <= 1e-14 * scale
+                || n == Vector3::zeros()
+            {
+                return Err(ContactError::DegenerateTriangle { triangle: t, vertices: *tri });
+            }
+            triangles.push([tri[0] as u32, tri[1] as u32, tri[2] as u32]);
+        }
+
+        // Directed half-edges → face; undirected edges with their faces.
+        let mut undirected: HashMap<(u32, u32), Vec<(u32, bool)>> =
+            HashMap::with_capacity(triangles.len() * 2);
+        for (t, tri) in triangles.iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                let key = (a.min(b), a.max(b));
+                undirected.entry(key).or_default().push((t as u32, a < b));
+            }
+        }
+        let mut keys: Vec<(u32, u32)> = undirected.keys().copied().collect();
+        keys.sort_unstable();
+        let mut edges = Vec::with_capacity(keys.len());
+        let mut edge_faces = Vec::with_capacity(keys.len());
+        let mut edge_index: HashMap<(u32, u32), u32> = HashMap::with_capacity(keys.len());
+        for key in keys {
+            let faces = &undirected[&key];
+            match faces.len() {
+                1 => {
+                    return Err(ContactError::OpenEdge {
+                        a: key.0 as usize,
+                        b: key.1 as usize,
+                        triangle: faces[0].0 as usize,
+                    });
+                }
+                2 => {
+                    if faces[0].1 == faces[1].1 {
+                        return Err(ContactError::InconsistentOrientation {
+                            a: key.0 as usize,
+                            b: key.1 as usize,
+                            t1: faces[0].0 as usize,
+                            t2: faces[1].0 as usize,
+                        });
+                    }
+                }
+                n => {
+                    return Err(ContactError::NonManifoldEdge {
+                        a: key.0 as usize,
+                        b: key.1 as usize,
+                        count: n,
+                        triangles: faces.iter().map(|f| f.0 as usize).collect(),
+                    });
+                }
+            }
+            edge_index.insert(key, edges.len() as u32);
+            edges.push([key.0, key.1]);
+            edge_faces.push([faces[0].0, faces[1].0]);
+        }
+        let face_edges: Vec<[u32; 3]> = triangles
+            .iter()
+            .map(|tri| {
+                let mut fe = [0u32; 3];
+                for k in 0..3 {
+                    let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                    fe[k] = edge_index[&(a.min(b), a.max(b))];
+                }
+                fe
+            })
+            .collect();
+
+        let verts = surface.vertices.clone();
+        let p = |i: u32| &verts[i as usize];
+
+        // Node → faces, node → edges (CSR).
+        let csr = |count: usize, items: &mut dyn Iterator<Item = (u32, u32)>| {
+            let pairs: Vec<(u32, u32)> = items.collect();
+            let mut start = vec![0u32; count + 1];
+            for &(n, _) in &pairs {
+                start[n as usize + 1] += 1;
+            }
+            for i in 0..count {
+                start[i + 1] += start[i];
+            }
+            let mut fill = start.clone();
+            let mut list = vec![0u32; pairs.len()];
+            for &(n, x) in &pairs {
+                list[fill[n as usize] as usize] = x;
+                fill[n as usize] += 1;
+            }
+            (start, list)
+        };
+        let (node_faces_start, node_faces) = csr(
+            nv,
+            &mut triangles
+                .iter()
+                .enumerate()
+                .flat_map(|(t, tri)| tri.iter().map(move |&v| (v, t as u32))),
+        );
+        let (node_edges_start, node_edges) = csr(
+            nv,
+            &mut edges
+                .iter()
+                .enumerate()
+                .flat_map(|(e, ab)| ab.iter().map(move |&v| (v, e as u32))),
+        );
+
+        // Vertex manifoldness: the faces around each vertex form one fan.
+        let mut half_edge: HashMap<(u32, u32), u32> = HashMap::with_capacity(triangles.len() * 3);
+        for (t, tri) in triangles.iter().enumerate() {
+            for k in 0..3 {
+                half_edge.insert((tri[k], tri[(k + 1) % 3]), t as u32);
+            }
+        }
+        for v in 0..nv {
+            let faces = &node_faces[node_faces_start[v] as usize..node_faces_start[v + 1] as usize];
+            if faces.is_empty() {
+                continue;
+            }
+            // Walk around v: from face f with corner v, cross the edge (v, next) into the
+            // face that contains the half-edge (next, v).
+            let mut count = 0usize;
+            let mut f = faces[0];
+            loop {
+                let tri = triangles[f as usize];
+                let k = tri.iter().position(|&x| x as usize == v).unwrap_or(0);
+                let next = tri[(k + 1) % 3];
+                f = half_edge[&(next, v as u32)];
+                count += 1;
+                if f == faces[0] || count > faces.len() {
+                    break;
+                }
+            }
+            if count != faces.len() {
+                let fans = faces.len().div_ceil(count.max(1)).max(2);
+                return Err(ContactError::NonManifoldVertex { vertex: v, fans });
+            }
+        }
+
+        // Outward orientation: signed enclosed volume.
+        let volume: f64 = triangles
+            .iter()
+            .map(|t| p(t[0]).coords.dot(&p(t[1]).coords.cross(&p(t[2]).coords)) / 6.0)
+            .sum();
+        if volume.is_nan() || volume <= 0.0 {
+            return Err(ContactError::InwardOriented { volume });
+        }
+
+        let face_normals: Vec<Vector3<f64>> =
+            triangles.iter().map(|t| triangle_normal(p(t[0]), p(t[1]), p(t[2])).0).collect();
+        let edge_normals: Vec<Vector3<f64>> = edge_faces
+            .iter()
+            .map(|f| face_normals[f[0] as usize] + face_normals[f[1] as usize])
+            .collect();
+        let mut node_normals = vec![Vector3::zeros(); nv];
+        let mut bisectors = Vec::with_capacity(triangles.len());
+        for (t, tri) in triangles.iter().enumerate() {
+            let mut b = [Vector3::zeros(); 3];
+            for k in 0..3 {
+                let (c, u, w) = (p(tri[k]), p(tri[(k + 1) % 3]), p(tri[(k + 2) % 3]));
+                let weight = match node_rule {
+                    NodeNormalRule::AngleWeighted => corner_angle(c, u, w),
+                    NodeNormalRule::PlainSum => 1.0,
+                };
+                node_normals[tri[k] as usize] += face_normals[t] * weight;
+                let bis = (u - c).normalize() + (w - c).normalize();
+                b[k] = bis.normalize();
+            }
+            bisectors.push(b);
+        }
+        let mut node_radius = vec![0.0f64; nv];
+        let mut max_edge = 0.0f64;
+        let mut max_edge_projection = Vector3::zeros();
+        for e in &edges {
+            let d = p(e[1]) - p(e[0]);
+            let len = d.norm();
+            max_edge = max_edge.max(len);
+            for k in 0..3 {
+                max_edge_projection[k] = f64::max(max_edge_projection[k], d[k].abs());
+            }
+            for &v in e {
+                node_radius[v as usize] = node_radius[v as usize].max(len);
+            }
+        }
+        let (lo, hi) = bounds(verts.iter());
+        let size = (hi - lo).norm();
+
+        Ok(Self {
+            vertices: verts,
+            triangles,
+            edges,
+            edge_faces,
+            face_edges,
+            face_normals,
+            edge_normals,
+            node_normals,
+            bisectors,
+            node_radius,
+            node_faces_start,
+            node_faces,
+            node_edges_start,
+            node_edges,
+            max_edge,
+            max_edge_projection,
+            size,
+            node_rule,
+        })
+    }
+
+    /// Faces containing node `v`.
+    #[inline]
+    pub fn faces_of(&self, v: u32) -> &[u32] {
+        &self.node_faces[self.node_faces_start[v as usize] as usize
+            ..self.node_faces_start[v as usize + 1] as usize]
+    }
+
+    /// Edges containing node `v`.
+    #[inline]
+    pub fn edges_of(&self, v: u32) -> &[u32] {
+        &self.node_edges[self.node_edges_start[v as usize] as usize
+            ..self.node_edges_start[v as usize + 1] as usize]
+    }
+
+    /// Whether node `v` belongs to at least one triangle.
+    #[inline]
+    pub fn is_used(&self, v: u32) -> bool {
+        self.node_faces_start[v as usize] != self.node_faces_start[v as usize + 1]
+    }
+
+    /// The outward normal used for the inside/outside verdict at a feature.
+    #[inline]
+    pub fn normal(&self, f: Feature) -> &Vector3<f64> {
+        match f {
+            Feature::Node(v) => &self.node_normals[v as usize],
+            Feature::Edge(e) => &self.edge_normals[e as usize],
+            Feature::Face(t) => &self.face_normals[t as usize],
+        }
+    }
+
+    /// Global feature for a local triangle region.
+    #[inline]
+    pub fn feature_of(&self, face: u32, region: TriRegion) -> Feature {
+        match region {
+            TriRegion::Vertex(k) => Feature::Node(self.triangles[face as usize][k as usize]),
+            TriRegion::Edge(k) => Feature::Edge(self.face_edges[face as usize][k as usize]),
+            TriRegion::Face => Feature::Face(face),
+        }
+    }
+
+    /// Outside verdict of the paper: `RP · n > 0` with the outward normal at the feature.
+    #[inline]
+    pub fn is_outside(&self, p: &Point3<f64>, r: &Point3<f64>, f: Feature) -> bool {
+        (p - r).dot(self.normal(f)) > 0.0
+    }
+
+    /// Signed volume enclosed by the surface (positive for outward orientation).
+    pub fn volume(&self) -> f64 {
+        self.triangles
+            .iter()
+            .map(|t| {
+                let (a, b, c) = (
+                    &self.vertices[t[0] as usize],
+                    &self.vertices[t[1] as usize],
+                    &self.vertices[t[2] as usize],
+                );
+                a.coords.dot(&b.coords.cross(&c.coords)) / 6.0
+            })
+            .sum()
+    }
+}
+
+/// Axis-aligned bounds of a point set.
+pub(crate) fn bounds<'a>(pts: impl Iterator<Item = &'a Point3<f64>>) -> (Point3<f64>, Point3<f64>) {
+    let mut lo = Point3::new(f64::INFINITY, f64::INFINITY, f64::INFINITY);
+    let mut hi = Point3::new(f64::NEG_INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
+    for p in pts {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    (lo, hi)
+}

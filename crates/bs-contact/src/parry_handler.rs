@@ -1,0 +1,65 @@
+//! Baseline handler on parry3d-f64: `TriMesh` (built with the `ORIENTED` flag so that its
+//! pseudo-normal inside test works) and its BVH closest-point query.
+
+use bs_mesh::TriSurface;
+use nalgebra::Point3;
+use parry3d_f64::math::Vector as PVec;
+use parry3d_f64::query::PointQuery;
+use parry3d_f64::shape::{TriMesh, TriMeshFlags};
+
+use crate::ContactError;
+use crate::enforce::{ClosestPoint, Projection};
+use crate::master::MasterSurface;
+
+/// Closest point and inside test from parry's `TriMesh` (the off-the-shelf baseline).
+pub struct ParryContact {
+    mesh: TriMesh,
+}
+
+impl std::fmt::Debug for ParryContact {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ParryContact").field("triangles", &self.mesh.indices().len()).finish()
+    }
+}
+
+impl ParryContact {
+    /// Validates the skull with the same rules as the other handlers and builds the mesh.
+    pub fn new(surface: &TriSurface) -> Result<Self, ContactError> {
+        Self::from_master(&MasterSurface::new(surface)?)
+    }
+
+    /// Builds the parry mesh from a validated master surface.
+    pub fn from_master(master: &MasterSurface) -> Result<Self, ContactError> {
+        let vertices: Vec<PVec> =
+            master.vertices.iter().map(|p| PVec::new(p.x, p.y, p.z)).collect();
+        let mesh = TriMesh::with_flags(vertices, master.triangles.clone(), TriMeshFlags::ORIENTED)
+            .map_err(|e| {
+                ContactError::InvalidParameter(format!("parry rejected the skull mesh: {e:?}"))
+            })?;
+        Ok(Self { mesh })
+    }
+
+    /// Closest point with parry's inside flag (`solid = false`).
+    pub fn project(&self, p: &Point3<f64>) -> Projection {
+        let q = PVec::new(p.x, p.y, p.z);
+        let proj = self.mesh.project_local_point(q, false);
+        let r = Point3::new(proj.point.x, proj.point.y, proj.point.z);
+        let dist = (r - p).norm();
+        Projection {
+            point: r,
+            distance: if proj.is_inside { dist } else { -dist },
+            outside: !proj.is_inside,
+            feature: None,
+        }
+    }
+}
+
+impl ClosestPoint for ParryContact {
+    fn closest(&mut self, _slave: usize, p: &Point3<f64>) -> Option<Projection> {
+        Some(self.project(p))
+    }
+
+    fn name(&self) -> &'static str {
+        "parry"
+    }
+}

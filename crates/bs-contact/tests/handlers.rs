@@ -1,0 +1,186 @@
+//! The handlers against brute force on random closed surfaces, the Fig. 2c regression, the
+//! literal edge rules' regression, coherence = paper.
+
+mod common;
+
+use std::sync::Arc;
+
+use bs_contact::shapes::Rng;
+use bs_contact::{
+    BruteForce, ClosestPoint, CoherentContact, Feature, MasterSurface, PaperContact, PaperParams,
+    ParryContact,
+};
+use common::{query_near, surfaces, tol};
+
+/// Handlers 1 (paper), 3 (parry) and 4 (coherent) give brute force's distance and verdict:
+/// parry on every query, the paper and coherent handlers on every query within their reach
+/// d of the surface (inside or outside); beyond it they never call an inside point outside.
+#[test]
+fn handlers_agree_with_brute_force_on_random_surfaces() {
+    for (name, s) in surfaces() {
+        let m = Arc::new(MasterSurface::new(&s).unwrap());
+        let brute = BruteForce::from_master(m.clone());
+        let parry = ParryContact::from_master(&m).unwrap();
+        for d_factor in [0.25, 0.5] {
+            let d = d_factor * m.max_edge;
+            let params = PaperParams { max_step_penetration: Some(d), ..Default::default() };
+            let paper = PaperContact::from_master(m.clone(), params).unwrap();
+            let mut coherent = CoherentContact::from_master(m.clone(), params).unwrap();
+            let mut rng = Rng::new(42);
+            let (mut within, mut outside_within) = (0, 0);
+            for i in 0..700 {
+                let q = query_near(&m, &mut rng, 2.0 * m.max_edge);
+                let b = brute.project(&q);
+                let t = tol(b.distance, m.size);
+                let pa = parry.project(&q);
+                assert!(
+                    (pa.distance - b.distance).abs() <= t && pa.outside == b.outside,
+                    "{name}: parry {pa:?} vs brute {b:?} at {q:?}"
+                );
+                let p = paper.project(&q);
+                let c = coherent.closest(i % 5, &q);
+                if b.distance.abs() <= d {
+                    within += 1;
+                    outside_within += b.outside as usize;
+                    let p = p.unwrap_or_else(|| {
+                        panic!("{name}: paper found nothing at {q:?}, brute {b:?}")
+                    });
+                    assert!(
+                        (p.distance - b.distance).abs() <= t && p.outside == b.outside,
+                        "{name} d={d_factor}L: paper {p:?} vs brute {b:?} at {q:?}"
+                    );
+                    let c = c.unwrap_or_else(|| panic!("{name}: coherent found nothing at {q:?}"));
+                    assert_eq!(c, p, "{name}: coherent differs from paper at {q:?}");
+                } else {
+                    if !b.outside {
+                        assert!(
+                            !p.is_some_and(|p| p.outside),
+                            "{name}: paper calls inside {q:?} outside"
+                        );
+                    }
+                    // Beyond d the coherent handler may skip, but never disagrees on outside.
+                    assert_eq!(
+                        c.is_some_and(|c| c.outside),
+                        p.is_some_and(|p| p.outside),
+                        "{name}: coherent verdict differs at {q:?}"
+                    );
+                }
+            }
+            // The queries really exercise both sides within d.
+            assert!(within > 100 && outside_within > 50, "{name}: {within} / {outside_within}");
+        }
+    }
+}
+
+/// Finds a query where, as in the paper's Fig. 2c, the closest point is on a face that
+/// does not contain the closest master node C.
+fn find_fig2c(
+    m: &Arc<MasterSurface>,
+    paper: &PaperContact,
+    brute: &BruteForce,
+) -> Option<bs_mesh::Point3<f64>> {
+    let mut rng = Rng::new(7);
+    for _ in 0..20000 {
+        let q = query_near(m, &mut rng, 0.25 * m.max_edge);
+        let b = brute.project(&q);
+        if !b.outside || -b.distance > paper.max_step_penetration() {
+            continue;
+        }
+        let c = paper.closest_node(&q).unwrap();
+        if let Some(Feature::Face(f)) = b.feature
+            && !m.triangles[f as usize].contains(&c)
+        {
+            return Some(q);
+        }
+    }
+    None
+}
+
+/// Regression (paper Fig. 2c): a slave penetrates a face that is not connected to its
+/// closest master node. With the §3.2 additional lists it is found exactly; without them
+/// the local search around C misses it (wrong distance or missed penetration).
+#[test]
+fn fig2c_face_not_connected_to_closest_node_needs_additional_lists() {
+    let s = bs_contact::shapes::random_convex(30, 3);
+    let m = Arc::new(MasterSurface::new(&s).unwrap());
+    let brute = BruteForce::from_master(m.clone());
+    let with = PaperContact::from_master(m.clone(), PaperParams::default()).unwrap();
+    let without = PaperContact::from_master(
+        m.clone(),
+        PaperParams { additional_lists: false, ..Default::default() },
+    )
+    .unwrap();
+    let q = find_fig2c(&m, &with, &brute).expect("the test surface has a Fig. 2c situation");
+    let b = brute.project(&q);
+    let ok = with.project(&q).unwrap();
+    assert!((ok.distance - b.distance).abs() <= tol(b.distance, m.size) && ok.outside);
+    assert_eq!(ok.feature, b.feature);
+    let bad = without.project(&q);
+    assert!(
+        bad.is_none_or(|p| !p.outside || (p.distance - b.distance).abs() > 1e-6 * m.size),
+        "without lists the paper's local search should miss the face: {bad:?} vs {b:?}"
+    );
+}
+
+/// Regression: the edge rules as printed (`[OM] < d`, and edges of triangles containing C
+/// skipped) miss the closest edge of some outside slaves within d; the rules as the paper
+/// states their intent (AB within d of R) find them all.
+#[test]
+fn literal_edge_rules_miss_closest_edges() {
+    let s = bs_contact::shapes::random_convex(60, 5);
+    let m = Arc::new(MasterSurface::new(&s).unwrap());
+    let brute = BruteForce::from_master(m.clone());
+    let ours = PaperContact::from_master(m.clone(), PaperParams::default()).unwrap();
+    let literal = PaperContact::from_master(
+        m.clone(),
+        PaperParams { literal_edge_test: true, ..Default::default() },
+    )
+    .unwrap();
+    let d = ours.max_step_penetration();
+    let mut rng = Rng::new(3);
+    let mut literal_misses = 0;
+    for _ in 0..3000 {
+        let q = query_near(&m, &mut rng, d);
+        let b = brute.project(&q);
+        if b.distance.abs() > d {
+            continue;
+        }
+        let t = tol(b.distance, m.size);
+        let o = ours.project(&q).unwrap();
+        assert!((o.distance - b.distance).abs() <= t && o.outside == b.outside);
+        let l = literal.project(&q);
+        if l.is_none_or(|l| (l.distance - b.distance).abs() > t) {
+            assert!(
+                matches!(b.feature, Some(Feature::Edge(_))),
+                "literal rules miss a non-edge: {b:?}"
+            );
+            literal_misses += 1;
+        }
+    }
+    assert!(literal_misses > 0, "expected the printed edge rules to miss some closest edges");
+}
+
+/// A node far outside the grid of master nodes (beyond the skull's bounding box) still gets
+/// the exact closest node and point.
+#[test]
+fn points_outside_the_bucket_grid_get_exact_answers() {
+    let s = bs_contact::shapes::bumpy_sphere(300, 8, 0.2, 2);
+    let m = Arc::new(MasterSurface::new(&s).unwrap());
+    let brute = BruteForce::from_master(m.clone());
+    let paper = PaperContact::from_master(
+        m.clone(),
+        PaperParams { max_step_penetration: Some(10.0), ..Default::default() },
+    )
+    .unwrap();
+    let mut rng = Rng::new(9);
+    for _ in 0..200 {
+        let q = bs_mesh::Point3::from(rng.direction() * rng.range(1.5, 6.0));
+        let c = paper.closest_node(&q).unwrap();
+        let best =
+            (0..m.vertices.len()).map(|v| (m.vertices[v] - q).norm()).fold(f64::INFINITY, f64::min);
+        assert_eq!((m.vertices[c as usize] - q).norm(), best);
+        let b = brute.project(&q);
+        let p = paper.project(&q).unwrap();
+        assert!((p.distance - b.distance).abs() <= tol(b.distance, m.size) && p.outside);
+    }
+}
