@@ -193,6 +193,18 @@ impl Prepared {
     }
 }
 
+/// Rough peak memory of a run: solver state per node, precomputed data per element, the
+/// skull with its search structures. Measured sizes of the data structures, rounded up.
+fn memory_estimate(p: &Prepared) -> f64 {
+    let (tets, hexes) = p.mesh.count_by_kind();
+    let nodes = p.mesh.nodes.len() as f64;
+    let skull = p.skull.as_ref().map_or(0, |s| s.triangles.len()) as f64;
+    // ~12 nodal 3-vectors (positions, u, u⁻, forces, masses, mesh copy) = 300 B/node;
+    // tets: precomputed gradients + per-slot forces ≈ 250 B; hexes ≈ 1.2 kB (8×8 hourglass);
+    // skull: topology, normals, buckets and additional lists ≈ 1 kB per triangle.
+    nodes * 300.0 + tets as f64 * 250.0 + hexes as f64 * 1200.0 + skull * 1000.0
+}
+
 fn names<'a>(it: impl Iterator<Item = &'a String>) -> String {
     let v: Vec<&str> = it.map(String::as_str).collect();
     if v.is_empty() { "no sets".into() } else { v.join(", ") }
@@ -297,6 +309,8 @@ fn read_displacement_csv(file: &Path, mesh: &Mesh) -> Result<Vec<(usize, [f64; 3
 /// Runs `check`: prints a summary, exits non-zero (with the reason) if the scene cannot run.
 pub fn run(scene_path: &Path) -> Result<ExitCode, CheckError> {
     let p = Prepared::load(scene_path)?;
+    let composed = crate::compose::compose(&p)?;
+    let gap = composed.check_initial_gap(&p)?;
     let mut o = String::new();
     let u = p.scene.units.symbol();
     let (tets, hexes) = p.mesh.count_by_kind();
@@ -337,11 +351,27 @@ pub fn run(scene_path: &Path) -> Result<ExitCode, CheckError> {
     } else {
         let _ = writeln!(o, "  contact: none");
     }
+    if let Some((min, max)) = gap {
+        let _ = writeln!(
+            o,
+            "  initial gap: min {min:.4} {u}, max {max:.4} {u} over {} slave nodes (all inside)",
+            composed.slaves.len()
+        );
+    }
     let _ = writeln!(
         o,
         "  solver: {:?}, tolerance {} {u}",
         p.scene.solver.kind, p.scene.solver.tolerance
     );
+    let (dt, e) = composed.model.critical_time_step();
+    let _ = writeln!(
+        o,
+        "  stable time step: {:.4e} s (smallest element: id {}); Dynamic Relaxation uses \
+         fictitious masses, so this sets no step count",
+        dt * p.scene.units.metres(),
+        p.mesh.element_ids[e]
+    );
+    let _ = writeln!(o, "  expected memory: about {:.0} MB", memory_estimate(&p) / 1e6);
     for w in &p.warnings {
         let _ = writeln!(o, "  warning: {w}");
     }

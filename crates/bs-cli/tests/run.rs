@@ -1,0 +1,249 @@
+//! End-to-end: `brainshift run` and `check` on the bundled scenes, the cube patch cases
+//! against closed forms, and the bad-scene corpus.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn brainshift(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_brainshift")).args(args).output().expect("run brainshift")
+}
+
+/// A fresh temporary folder, removed on drop.
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(name: &str) -> TempDir {
+        let p = std::env::temp_dir().join(format!("bs-run-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&p);
+        std::fs::create_dir_all(&p).unwrap();
+        TempDir(p)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Runs a scene; returns report.json and the displacements by node id.
+fn run_scene(scene: &Path, out: &Path) -> (Value, HashMap<u64, [f64; 3]>) {
+    let o =
+        brainshift(&["run", scene.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"]);
+    assert!(
+        o.status.success(),
+        "run {} failed:\n{}\n{}",
+        scene.display(),
+        String::from_utf8_lossy(&o.stderr),
+        String::from_utf8_lossy(&o.stdout)
+    );
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let csv = std::fs::read_to_string(out.join("displacements.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("node_id,ux,uy,uz"));
+    let u = lines
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            let v = |i: usize| f[i].parse::<f64>().unwrap();
+            (f[0].parse::<u64>().unwrap(), [v(1), v(2), v(3)])
+        })
+        .collect();
+    (report, u)
+}
+
+/// The bundled contact scenes converge, leave no node outside the skull and report contact;
+/// the result files agree with each other.
+fn assert_contact_scene(dir: &str, name: &str) {
+    let scene = root().join("fixtures").join(dir).join("scene.toml");
+    let out = TempDir::new(name);
+    let (r, u) = run_scene(&scene, &out.0);
+    assert_eq!(r["converged"], true);
+    assert!(r["error_estimate"].as_f64().unwrap() < r["tolerance"].as_f64().unwrap());
+    assert!(r["nodes_in_contact"].as_u64().unwrap() > 0, "{r}");
+    assert!(r["max_penetration_before_correction"].as_f64().unwrap() > 0.0, "{r}");
+    // After enforcement no slave is outside the skull by more than 1e-9 of the model size
+    // (~100 mm): the kinematic correction puts nodes on the skull to rounding.
+    assert!(r["max_penetration_after"].as_f64().unwrap() <= 1e-7, "{r}");
+
+    let mesh =
+        bs_mesh::io::read_mesh(&root().join("fixtures").join(dir).join("brain.inp")).unwrap();
+    assert_eq!(u.len(), mesh.nodes.len());
+    // Prescribed nodes end exactly at their prescribed values; fixed nodes do not move.
+    for (set, expect) in [("FIXED", 0.0)] {
+        for &n in mesh.node_set(set).unwrap() {
+            assert_eq!(u[&mesh.node_ids[n]], [expect; 3], "{set} node {}", mesh.node_ids[n]);
+        }
+    }
+    // result.vtu carries the same displacements (bitwise) and a contact flag per node.
+    let (vmesh, fields) = match bs_mesh::io::read(&out.0.join("result.vtu")).unwrap() {
+        bs_mesh::io::MeshFile::Volume(m, f) => (m, f),
+        other => panic!("result.vtu is not a volume mesh: {other:?}"),
+    };
+    assert_eq!(vmesh.node_ids, mesh.node_ids);
+    let disp = fields.point.iter().find(|f| f.name == "displacement").unwrap();
+    for (i, id) in vmesh.node_ids.iter().enumerate() {
+        assert_eq!(&disp.values[3 * i..3 * i + 3], &u[id][..]);
+    }
+    let flag = fields.point.iter().find(|f| f.name == "in_contact").unwrap();
+    let flagged = flag.values.iter().filter(|&&v| v == 1.0).count() as u64;
+    assert_eq!(flagged, r["nodes_in_contact"].as_u64().unwrap());
+    let j = fields.cell.iter().find(|f| f.name == "J").unwrap();
+    assert!(j.values.iter().all(|&j| j > 0.0 && j.is_finite()));
+}
+
+#[test]
+fn sphere_in_shell_converges_with_contact_and_no_node_outside() {
+    assert_contact_scene("sphere-shell", "sphere-shell");
+}
+
+#[test]
+fn mni152_brain_converges_with_contact_and_no_node_outside() {
+    assert_contact_scene("mni152", "mni152");
+}
+
+#[test]
+fn check_rejects_a_brain_that_pokes_through_the_skull() {
+    let o =
+        brainshift(&["check", root().join("fixtures/bad/skull-too-small.toml").to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    // Names nodes by id with their distance outside.
+    assert!(
+        err.contains("brain surface nodes are outside the skull before any load: node "),
+        "{err}"
+    );
+}
+
+#[test]
+fn bad_scenes_fail_with_their_expected_message() {
+    let dir = root().join("fixtures/bad");
+    let mut scenes: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    scenes.sort();
+    assert!(scenes.len() >= 15, "the corpus must hold at least 15 scenes");
+    for scene in scenes {
+        let text = std::fs::read_to_string(&scene).unwrap();
+        let expect = text
+            .lines()
+            .next()
+            .and_then(|l| l.strip_prefix("# expect: "))
+            .unwrap_or_else(|| panic!("{} lacks its '# expect:' line", scene.display()));
+        let o = brainshift(&["check", scene.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(
+            o.status.code(),
+            Some(1),
+            "{}: expected a clean failure, got:\n{err}",
+            scene.display()
+        );
+        assert!(err.contains(expect), "{}: expected '{expect}' in:\n{err}", scene.display());
+        assert!(!err.contains("panicked"), "{}: {err}", scene.display());
+    }
+}
+
+/// Lateral stretch of a decoupled Neo-Hookean cube in uniaxial stress with axial stretch
+/// `lambda`: the root of σ₁₁ = (μ/J)(λ̄₁² − Ī₁/3) + κ(J − 1) = 0 (J = l²λ, λ̄ = J^(-1/3)λ),
+/// by bisection to machine precision.
+fn lateral_stretch(lambda: f64, mu: f64, kappa: f64) -> f64 {
+    let sigma = |l: f64| {
+        let j = l * l * lambda;
+        let s = j.powf(-2.0 / 3.0);
+        let i1 = s * (2.0 * l * l + lambda * lambda);
+        mu / j * (s * l * l - i1 / 3.0) + kappa * (j - 1.0)
+    };
+    let (mut lo, mut hi) = (1.0, 1.5); // compression: l > 1
+    assert!(sigma(lo) < 0.0 && sigma(hi) > 0.0);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if sigma(mid) < 0.0 { lo = mid } else { hi = mid }
+    }
+    0.5 * (lo + hi)
+}
+
+fn write_scene(dir: &Path, mesh: &Path, element: &str, boundaries: &str) -> PathBuf {
+    let scene = dir.join("scene.toml");
+    std::fs::write(
+        &scene,
+        format!(
+            "units = \"mm\"\n[mesh]\nfile = {mesh:?}\nelement = \"{element}\"\n[[region]]\nelset = \"*\"\n\
+             material = {{ model = \"neo-hookean\", youngs_modulus = 3000.0, poisson_ratio = 0.3 }}\n\
+             {boundaries}\n[solver]\nkind = \"dr\"\ntolerance = 1e-10\n"
+        ),
+    )
+    .unwrap();
+    scene
+}
+
+/// Uniaxial compression of the unit cube with symmetry planes through the CLI: every node
+/// matches the homogeneous field u = ((l−1)x, (l−1)y, (λ−1)z) to 1e-6 relative, for T4,
+/// T4ANP (unstructured gmsh tets) and H8.
+#[test]
+fn cube_uniaxial_compression_matches_the_closed_form() {
+    let (e, nu) = (3000.0, 0.3);
+    let (mu, kappa) = (e / (2.0 * (1.0 + nu)), e / (3.0 * (1.0 - 2.0 * nu)));
+    let lambda = 0.9;
+    let l = lateral_stretch(lambda, mu, kappa);
+    let bcs = "[[boundary]]\nnset = \"XMIN\"\nfix = [\"x\"]\n[[boundary]]\nnset = \"YMIN\"\nfix = [\"y\"]\n\
+               [[boundary]]\nnset = \"ZMIN\"\nfix = [\"z\"]\n[[boundary]]\nnset = \"ZMAX\"\n\
+               displacement = { z = -0.1 }";
+    for (file, element) in [("cube-t4.msh", "t4"), ("cube-t4.msh", "t4anp"), ("cube-h8.msh", "h8")]
+    {
+        let mesh_path = root().join("fixtures/basic").join(file);
+        let dir = TempDir::new(&format!("uniaxial-{element}"));
+        let scene = write_scene(&dir.0, &mesh_path, element, bcs);
+        let (_, u) = run_scene(&scene, &dir.0.join("out"));
+        let mesh = bs_mesh::io::read_mesh(&mesh_path).unwrap();
+        let mut worst = 0.0f64;
+        for (i, p) in mesh.nodes.iter().enumerate() {
+            let exact = [(l - 1.0) * p.x, (l - 1.0) * p.y, (lambda - 1.0) * p.z];
+            let got = u[&mesh.node_ids[i]];
+            for c in 0..3 {
+                worst = worst.max((got[c] - exact[c]).abs());
+            }
+        }
+        // Relative to the largest displacement (0.1).
+        assert!(worst <= 1e-6 * 0.1, "{element}: max error {worst:e}");
+    }
+}
+
+/// Simple shear with every boundary node prescribed (from a displacement file): interior
+/// nodes follow u = (γ y, 0, 0) to 1e-6 relative — a homogeneous deformation is the exact
+/// solution for any hyperelastic law.
+#[test]
+fn cube_simple_shear_matches_the_closed_form() {
+    let gamma = 0.2;
+    for (file, element) in [("cube-t4.msh", "t4anp"), ("cube-h8.msh", "h8")] {
+        let mesh_path = root().join("fixtures/basic").join(file);
+        let mesh = bs_mesh::io::read_mesh(&mesh_path).unwrap();
+        let dir = TempDir::new(&format!("shear-{element}"));
+        let mut csv = String::from("node_id,ux,uy,uz\n");
+        for &n in &mesh.boundary().volume_node {
+            csv.push_str(&format!("{},{:?},0,0\n", mesh.node_ids[n], gamma * mesh.nodes[n].y));
+        }
+        std::fs::write(dir.0.join("shear.csv"), csv).unwrap();
+        let scene = write_scene(
+            &dir.0,
+            &mesh_path,
+            element,
+            "[[boundary]]\ndisplacement_file = \"shear.csv\"",
+        );
+        let (_, u) = run_scene(&scene, &dir.0.join("out"));
+        let mut worst = 0.0f64;
+        for (i, p) in mesh.nodes.iter().enumerate() {
+            let got = u[&mesh.node_ids[i]];
+            worst = worst.max((got[0] - gamma * p.y).abs()).max(got[1].abs()).max(got[2].abs());
+        }
+        assert!(worst <= 1e-6 * gamma, "{element}: max error {worst:e}");
+    }
+}
