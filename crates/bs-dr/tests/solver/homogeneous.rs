@@ -156,3 +156,41 @@ fn uniaxial_compression_on_gmsh_fixtures() {
         assert!(worst <= 1e-6 * (1.0 - lz), "{file} {tet:?}: max nodal error {worst:e}");
     }
 }
+
+/// Homogeneous simple shear is an equilibrium state of every homogeneous hyperelastic solid,
+/// so the same patch test holds for St Venant–Kirchhoff and the brain Ogden law (T4). The
+/// Ogden model is built from two solids (same law, different densities, assigned
+/// alternately): DR masses are fictitious, so the answer must not change.
+#[test]
+fn simple_shear_other_laws() {
+    use bs_dr::{Model, ModelOptions, Solid};
+    use bs_material::OgdenParams;
+    let size = 1.0;
+    let gamma = 0.3;
+    let mesh = tet_cube(3, size, 0.2, 5);
+    let svk =
+        Solid { material: Material::st_venant_kirchhoff(100.0, 0.1).unwrap(), density: 1000.0 };
+    let ogden =
+        Solid { material: Material::Ogden(OgdenParams::brain(0.45).unwrap()), density: 1000.0 };
+    let heavy_ogden = Solid { density: 5000.0, ..ogden };
+    let alternate: Vec<usize> = (0..mesh.elements.len()).map(|e| e % 2).collect();
+    let mut loads = Loads::new(mesh.nodes.len());
+    for (i, p) in mesh.nodes.iter().enumerate() {
+        if on_boundary(p, size) {
+            loads.prescribe_node(i, Vector3::new(gamma * p.z, 0.0, 0.0)).unwrap();
+        }
+    }
+    let exact: Vec<Vector3<f64>> =
+        mesh.nodes.iter().map(|p| Vector3::new(gamma * p.z, 0.0, 0.0)).collect();
+    for (name, model) in [
+        ("svk", Model::uniform(&mesh, svk, ModelOptions::default()).unwrap()),
+        (
+            "ogden",
+            Model::new(&mesh, &[ogden, heavy_ogden], &alternate, ModelOptions::default()).unwrap(),
+        ),
+    ] {
+        let sol = dr().solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
+        let diff = max_diff(&sol.displacements, &exact);
+        assert!(diff <= 1e-6 * gamma * size, "{name}: interior error {diff:e}");
+    }
+}
