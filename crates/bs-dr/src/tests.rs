@@ -245,3 +245,19 @@ fn model_errors_name_the_element() {
         Err(ModelError::InvalidHourglass(_))
     ));
 }
+
+/// Physical lumped masses add up to ρ × total volume (hex volume from bs-mesh, tets by the
+/// triple product).
+#[test]
+fn lumped_masses_sum_to_total_mass() {
+    let mesh = distorted_mesh();
+    let m = model();
+    let mut masses = vec![0.0; m.node_count()];
+    m.lumped_masses_into(&mut masses);
+    let vol: f64 = (0..3).map(|e| mesh.element_volume(e)).sum();
+    let total: f64 = masses.iter().sum();
+    assert!((total - 1000.0 * vol).abs() <= 1e-12 * total);
+    // Node 8 belongs to the two tets only: a quarter of each.
+    let t = mesh.element_volume(1) + mesh.element_volume(2);
+    assert!((masses[8] - 1000.0 * t / 4.0).abs() <= 1e-12 * masses[8]);
+}
