@@ -8,6 +8,9 @@
 //!    threads, with the 2-thread speed-up.
 //! 2. DR steps and wall time against the Newton reference on a ~10 000-node T4 cube (bottom
 //!    clamped, top pushed down by 20% of the height), with their max nodal difference.
+//!
+//! `BS_BENCH_N=n` replaces the T4 mesh by `n³` cells and runs the kernel table only (for
+//! quick comparisons, e.g. a cache-resident mesh with `n = 6`).
 
 use std::time::{Duration, Instant};
 
@@ -131,7 +134,8 @@ pub fn run() -> Result<(), String> {
         "{:<7} {:>9} {:>9} {:>12} {:>12} {:>9}",
         "kernel", "elements", "nodes", "1 thr ns/el", "2 thr ns/el", "speed-up"
     );
-    let t4_mesh = cube(21, true); // 55 566 tets, 10 648 nodes
+    let nt4: usize = std::env::var("BS_BENCH_N").ok().and_then(|s| s.parse().ok()).unwrap_or(21);
+    let t4_mesh = cube(nt4, true); // 55 566 tets, 10 648 nodes
     let h8_mesh = cube(37, false); // 50 653 hexes
     for (name, mesh, tet) in [
         ("T4", &t4_mesh, TetFormulation::T4),
@@ -158,6 +162,9 @@ pub fn run() -> Result<(), String> {
         );
     }
 
+    if std::env::var("BS_BENCH_N").is_ok() {
+        return Ok(());
+    }
     // DR vs Newton on the 10 648-node T4 cube.
     let m = model(&t4_mesh, TetFormulation::T4);
     let mut loads = Loads::new(t4_mesh.nodes.len());

@@ -37,6 +37,18 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
+//! What the solvers guarantee:
+//!
+//! * Prescribed components equal their final values exactly in the answer; contact never
+//!   moves them (the solver restores them after [`Contact::enforce`]).
+//! * DR stops on its error estimate ([`DrParams::tolerance`] × load scale for
+//!   [`DrParams::consecutive`] steps), never on a step count; every failure is a typed
+//!   [`SolveError`] naming the cause and the fix (NaN, inverted element with index and id,
+//!   unstable step, unbounded growth, step budget with the error reached).
+//! * Internal forces are bit-identical for any rayon thread count; the step loop allocates
+//!   nothing (buffers are allocated once per solve).
+//! * Newton supports T4 and H8 (not T4ANP, not contact) and exists to check DR.
+//!
 //! Modules: [`model`] (precomputation), [`forces`] (kernels and deterministic parallel
 //! assembly), [`loads`], [`contact`] (the seam), [`solver`] (trait, report, errors),
 //! [`dr`], [`newton`].

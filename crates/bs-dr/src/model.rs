@@ -594,6 +594,23 @@ impl Model {
         best
     }
 
+    /// Physical lumped nodal masses: each element's `ρ V` shared equally by its nodes.
+    pub fn lumped_masses_into(&self, masses: &mut [f64]) {
+        masses.iter_mut().for_each(|m| *m = 0.0);
+        for t in &self.tets {
+            let me = self.solids[t.mat as usize].density * t.vol / 4.0;
+            for &n in &t.nodes {
+                masses[n as usize] += me;
+            }
+        }
+        for h in &self.hexes {
+            let me = self.solids[h.mat as usize].density * h.vol / 8.0;
+            for &n in &h.nodes {
+                masses[n as usize] += me;
+            }
+        }
+    }
+
     /// Fictitious lumped nodal masses for Dynamic Relaxation with unit time step `h = 1`:
     /// element `e` gets mass `m_e = n λ_max(K_e) / (4 f²)`, shared equally by its `n` nodes,
     /// so that its own critical step `2/ω_e` is `h/f`: the step is the fraction `f` of the

@@ -109,7 +109,7 @@ impl Model {
         let c = f.transpose() * f;
         let (s, d) = self.solids[e.mat].material.tangent_cj(&c, j);
         // B_a (6×3): row (I,J) normal: F_kI g_I; shear: F_kI g_J + F_kJ g_I.
-        let mut b = vec![nalgebra::SMatrix::<f64, 6, 3>::zeros(); nn];
+        let mut b = [nalgebra::SMatrix::<f64, 6, 3>::zeros(); 8];
         for a in 0..nn {
             let g = e.g[a];
             for (r, &(ii, jj)) in bs_material::VOIGT.iter().enumerate() {

@@ -15,6 +15,8 @@ pub struct Progress {
     /// Step (DR) or cumulative iteration (Newton) number, from 1.
     pub step: usize,
     /// Current error estimate (DR: `max|Δu| ρₑ/(1−ρₑ)`; Newton: `max|δu|`), length units.
+    /// DR reports `f64::INFINITY` during the ramp and the first snapshot window after it,
+    /// before a convergence rate has been observed.
     pub err: f64,
     /// DR convergence rate ρ in use (Newton: 0).
     pub rho: f64,

@@ -206,3 +206,58 @@ fn critical_time_step_of_a_tet_matches_dense_eigenvalue() {
     let omega = (lmax / (1000.0 * vol / 4.0)).sqrt();
     assert!((dt - 2.0 / omega).abs() <= 1e-10 * dt, "{dt} vs {}", 2.0 / omega);
 }
+
+#[test]
+fn model_errors_name_the_element() {
+    use crate::model::ModelError;
+    let mut mesh = distorted_mesh();
+    mesh.element_ids = vec![7, 8, 9];
+    let solid = Solid { material: Material::neo_hookean(3000.0, 0.4).unwrap(), density: 1000.0 };
+    let opts = ModelOptions::default();
+    assert_eq!(
+        Model::new(&mesh, &[solid], &[0, 0], opts).unwrap_err(),
+        ModelError::AssignmentLength { expected: 3, got: 2 }
+    );
+    assert_eq!(
+        Model::new(&mesh, &[solid], &[0, 1, 0], opts).unwrap_err(),
+        ModelError::UnknownSolid { element: 1, element_id: 8, solid: 1, count: 1 }
+    );
+    let bad = Solid { density: 0.0, ..solid };
+    assert_eq!(
+        Model::new(&mesh, &[bad], &[0, 0, 0], opts).unwrap_err(),
+        ModelError::InvalidDensity { solid: 0, density: 0.0 }
+    );
+    let mut m2 = mesh.clone();
+    m2.elements[2] = Element::tet4([5, 6, 7, 99]);
+    assert_eq!(
+        Model::uniform(&m2, solid, opts).unwrap_err(),
+        ModelError::NodeOutOfRange { element: 2, element_id: 9, node: 99, count: 9 }
+    );
+    // A hex with swapped top and bottom faces is inverted.
+    let mut m3 = mesh.clone();
+    m3.elements[0] = Element::hex8([4, 5, 6, 7, 0, 1, 2, 3]);
+    assert!(matches!(
+        Model::uniform(&m3, solid, opts).unwrap_err(),
+        ModelError::InvertedElement { element: 0, element_id: 7, .. }
+    ));
+    assert!(matches!(
+        Model::uniform(&mesh, solid, ModelOptions { hourglass: -1.0, ..opts }),
+        Err(ModelError::InvalidHourglass(_))
+    ));
+}
+
+/// Physical lumped masses add up to ρ × total volume (hex volume from bs-mesh, tets by the
+/// triple product).
+#[test]
+fn lumped_masses_sum_to_total_mass() {
+    let mesh = distorted_mesh();
+    let m = model();
+    let mut masses = vec![0.0; m.node_count()];
+    m.lumped_masses_into(&mut masses);
+    let vol: f64 = (0..3).map(|e| mesh.element_volume(e)).sum();
+    let total: f64 = masses.iter().sum();
+    assert!((total - 1000.0 * vol).abs() <= 1e-12 * total);
+    // Node 8 belongs to the two tets only: a quarter of each.
+    let t = mesh.element_volume(1) + mesh.element_volume(2);
+    assert!((masses[8] - 1000.0 * t / 4.0).abs() <= 1e-12 * masses[8]);
+}

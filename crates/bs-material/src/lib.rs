@@ -314,10 +314,11 @@ impl Hyperelastic for NeoHookean {
             f[(0, 2)] * f[(1, 0)] - f[(0, 0)] * f[(1, 2)],
             f[(0, 0)] * f[(1, 1)] - f[(0, 1)] * f[(1, 0)],
         );
-        let a = p.mu * inv_cbrt(j * j);
+        let r = inv_cbrt(j * j); // J^(−2/3); r³ = J⁻², so 1/J = J r³ (no division)
+        let a = p.mu * r;
         let i1 = f.norm_squared();
         // coefficient of F⁻ᵀ = cof/J
-        let b = (p.kappa * j * (j - 1.0) - a * i1 / 3.0) / j;
+        let b = (p.kappa * j * (j - 1.0) - a * i1 * (1.0 / 3.0)) * (j * r * r * r);
         f * a + cof * b
     }
 

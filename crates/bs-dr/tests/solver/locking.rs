@@ -40,7 +40,7 @@ fn t4_locks_and_t4anp_does_not() {
         let (mesh, model) = cube_model(tech, 4, 1.0, 0.2, material);
         let (loads, patch) = indentation(&mesh);
         let sol = if tech == Tech::T4Anp {
-            DynamicRelaxation::new(DrParams { tolerance: 1e-7, ..Default::default() })
+            DynamicRelaxation::new(DrParams::default())
                 .solve(&model, &loads, &mut NoContact, &mut |_| {})
                 .unwrap()
         } else {
