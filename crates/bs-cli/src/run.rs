@@ -91,7 +91,7 @@ impl Reporter {
     }
 
     fn update(&mut self, p: &Progress) {
-        if self.quiet || p.step % 50 != 0 {
+        if self.quiet || !p.step.is_multiple_of(50) {
             return;
         }
         let msg = format!(

@@ -243,17 +243,19 @@ pub fn read_surface(path: &Path) -> Result<TriSurface, MeshIoError> {
 }
 
 /// Writes a volume mesh with point and cell data; the format comes from the extension
-/// (`.vtu` binary appended, `.vtk` legacy ASCII).
+/// (`.vtu` binary appended, `.vtk` legacy ASCII, `.inp` Abaqus without the fields).
 pub fn write_mesh(path: &Path, mesh: &Mesh, fields: &Fields) -> Result<(), MeshIoError> {
     match Format::from_path(path) {
         Some(Format::Vtu) => {
             write_atomic(path, |w| vtu::write(w, mesh, fields, vtu::Encoding::Appended))
         }
         Some(Format::Vtk) => write_atomic(path, |w| vtk::write(w, mesh, fields)),
+        // Abaqus decks hold no point or cell data: the fields are not written.
+        Some(Format::Inp) => write_atomic(path, |w| inp::write(w, mesh)),
         Some(f) => Err(MeshIoError::Unsupported {
             file: path.to_path_buf(),
             message: format!(
-                "writing volume meshes as .{} is not supported; use .vtu or .vtk",
+                "writing volume meshes as .{} is not supported; use .vtu, .vtk or .inp",
                 f.extension()
             ),
         }),
