@@ -171,39 +171,26 @@ fn lateral_stretch(lambda: f64, mu: f64, kappa: f64) -> f64 {
     0.5 * (lo + hi)
 }
 
-fn write_scene(dir: &Path, mesh: &Path, element: &str, boundaries: &str) -> PathBuf {
-    let scene = dir.join("scene.toml");
-    std::fs::write(
-        &scene,
-        format!(
-            "units = \"mm\"\n[mesh]\nfile = {mesh:?}\nelement = \"{element}\"\n[[region]]\nelset = \"*\"\n\
-             material = {{ model = \"neo-hookean\", youngs_modulus = 3000.0, poisson_ratio = 0.3 }}\n\
-             {boundaries}\n[solver]\nkind = \"dr\"\ntolerance = 1e-10\n"
-        ),
-    )
-    .unwrap();
-    scene
+fn cube_mesh(element: &str) -> bs_mesh::Mesh {
+    let file = if element == "h8" { "cube-h8.msh" } else { "cube-t4.msh" };
+    bs_mesh::io::read_mesh(&root().join("fixtures/basic").join(file)).unwrap()
 }
 
-/// Uniaxial compression of the unit cube with symmetry planes through the CLI: every node
-/// matches the homogeneous field u = ((l−1)x, (l−1)y, (λ−1)z) to 1e-6 relative, for T4,
-/// T4ANP (unstructured gmsh tets) and H8.
+/// Uniaxial compression of the unit cube with symmetry planes through the CLI
+/// (fixtures/cube/uniaxial-*.toml): every node matches the homogeneous field
+/// u = ((l−1)x, (l−1)y, (λ−1)z) to 1e-6 relative, for T4, T4ANP (unstructured gmsh tets)
+/// and H8.
 #[test]
 fn cube_uniaxial_compression_matches_the_closed_form() {
     let (e, nu) = (3000.0, 0.3);
     let (mu, kappa) = (e / (2.0 * (1.0 + nu)), e / (3.0 * (1.0 - 2.0 * nu)));
     let lambda = 0.9;
     let l = lateral_stretch(lambda, mu, kappa);
-    let bcs = "[[boundary]]\nnset = \"XMIN\"\nfix = [\"x\"]\n[[boundary]]\nnset = \"YMIN\"\nfix = [\"y\"]\n\
-               [[boundary]]\nnset = \"ZMIN\"\nfix = [\"z\"]\n[[boundary]]\nnset = \"ZMAX\"\n\
-               displacement = { z = -0.1 }";
-    for (file, element) in [("cube-t4.msh", "t4"), ("cube-t4.msh", "t4anp"), ("cube-h8.msh", "h8")]
-    {
-        let mesh_path = root().join("fixtures/basic").join(file);
+    for element in ["t4", "t4anp", "h8"] {
+        let scene = root().join(format!("fixtures/cube/uniaxial-{element}.toml"));
         let dir = TempDir::new(&format!("uniaxial-{element}"));
-        let scene = write_scene(&dir.0, &mesh_path, element, bcs);
-        let (_, u) = run_scene(&scene, &dir.0.join("out"));
-        let mesh = bs_mesh::io::read_mesh(&mesh_path).unwrap();
+        let (_, u) = run_scene(&scene, &dir.0);
+        let mesh = cube_mesh(element);
         let mut worst = 0.0f64;
         for (i, p) in mesh.nodes.iter().enumerate() {
             let exact = [(l - 1.0) * p.x, (l - 1.0) * p.y, (lambda - 1.0) * p.z];
@@ -217,28 +204,19 @@ fn cube_uniaxial_compression_matches_the_closed_form() {
     }
 }
 
-/// Simple shear with every boundary node prescribed (from a displacement file): interior
-/// nodes follow u = (γ y, 0, 0) to 1e-6 relative — a homogeneous deformation is the exact
-/// solution for any hyperelastic law.
+/// Simple shear with every boundary node prescribed from a displacement file
+/// (fixtures/cube/shear-*.toml): interior nodes follow u = (γ y, 0, 0) to 1e-6 relative —
+/// a homogeneous deformation is the exact solution for any hyperelastic law.
 #[test]
 fn cube_simple_shear_matches_the_closed_form() {
     let gamma = 0.2;
-    for (file, element) in [("cube-t4.msh", "t4anp"), ("cube-h8.msh", "h8")] {
-        let mesh_path = root().join("fixtures/basic").join(file);
-        let mesh = bs_mesh::io::read_mesh(&mesh_path).unwrap();
+    for element in ["t4", "t4anp", "h8"] {
+        let scene = root().join(format!("fixtures/cube/shear-{element}.toml"));
         let dir = TempDir::new(&format!("shear-{element}"));
-        let mut csv = String::from("node_id,ux,uy,uz\n");
-        for &n in &mesh.boundary().volume_node {
-            csv.push_str(&format!("{},{:?},0,0\n", mesh.node_ids[n], gamma * mesh.nodes[n].y));
-        }
-        std::fs::write(dir.0.join("shear.csv"), csv).unwrap();
-        let scene = write_scene(
-            &dir.0,
-            &mesh_path,
-            element,
-            "[[boundary]]\ndisplacement_file = \"shear.csv\"",
-        );
-        let (_, u) = run_scene(&scene, &dir.0.join("out"));
+        let (_, u) = run_scene(&scene, &dir.0);
+        let mesh = cube_mesh(element);
+        let interior = mesh.nodes.len() - mesh.boundary().volume_node.len();
+        assert!(interior > 0);
         let mut worst = 0.0f64;
         for (i, p) in mesh.nodes.iter().enumerate() {
             let got = u[&mesh.node_ids[i]];
