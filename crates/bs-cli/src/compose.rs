@@ -9,13 +9,20 @@ use bs_material::{Material, OgdenParams};
 use crate::check::{CheckError, Prepared};
 use crate::scene::{Algorithm, ElementChoice, MaterialModel};
 
-/// bs-contact's enforcement loop seen through bs-dr's contact seam.
+/// bs-contact's enforcement loop seen through bs-dr's contact seam; it also keeps the time
+/// spent in contact so a run can report its share.
 #[derive(Debug)]
-pub struct SkullContact(pub Enforcer<Handler>);
+pub struct SkullContact {
+    enforcer: Enforcer<Handler>,
+    /// Wall time spent enforcing contact so far.
+    pub elapsed: std::time::Duration,
+}
 
 impl bs_dr::Contact for SkullContact {
     fn enforce(&mut self, positions: &mut [bs_mesh::Point3<f64>]) -> ContactReport {
-        let r = self.0.enforce(positions);
+        let start = std::time::Instant::now();
+        let r = self.enforcer.enforce(positions);
+        self.elapsed += start.elapsed();
         ContactReport { nodes_in_contact: r.nodes_in_contact, max_penetration: r.max_penetration }
     }
 }
@@ -109,7 +116,7 @@ pub fn compose(p: &Prepared) -> Result<Composed, CheckError> {
                 .map_err(|e| CheckError(format!("{}: {e}", c.skull.display())))?;
             let enforcer = Enforcer::new(handler, slaves.clone(), model.node_count())
                 .map_err(|e| CheckError(e.to_string()))?;
-            (Some(master), Some(SkullContact(enforcer)))
+            (Some(master), Some(SkullContact { enforcer, elapsed: Default::default() }))
         }
         _ => (None, None),
     };
