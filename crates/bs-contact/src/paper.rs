@@ -354,6 +354,9 @@ pub(crate) struct FaceAt {
     bisector: Vector3<f64>,
 }
 
+/// Most neighbours kept per master node for certifying the closest-node search.
+const NEAR: usize = 64;
+
 /// The paper's contact handler.
 #[derive(Debug, Clone)]
 pub struct PaperContact {
@@ -373,6 +376,14 @@ pub struct PaperContact {
     /// Start of each edge's segment point A (for additional edges) — the vertex the dir
     /// starts from.
     edge_origin: Vec<Point3<f64>>,
+    /// CSR per node: the nearest other used nodes (at most [`NEAR`]), sorted by distance.
+    near_start: Vec<u32>,
+    near: Vec<(f64, u32)>,
+    /// Per node: every used node not in its list is at least this far.
+    near_radius: Vec<f64>,
+    /// Per bucket: a node near the bucket centre (start of the certification when the
+    /// 27-bucket block is empty).
+    seeds: Vec<u32>,
 }
 
 impl PaperContact {
@@ -433,6 +444,32 @@ impl PaperContact {
             edges_at_start.push(edges_at.len() as u32);
         }
         let edge_origin = master.edges.iter().map(|ab| master.vertices[ab[0] as usize]).collect();
+        // Node neighbourhoods for certifying the block search: the nearest (at most NEAR)
+        // nodes within three longest edges.
+        let gather = 3.0 * master.max_edge;
+        let mut near_start = Vec::with_capacity(nv + 1);
+        let mut near = Vec::new();
+        let mut near_radius = vec![0.0; nv];
+        near_start.push(0u32);
+        let mut found: Vec<(f64, u32)> = Vec::new();
+        for c in 0..nv as u32 {
+            if master.is_used(c) {
+                let pc = master.vertices[c as usize];
+                found.clear();
+                grid.for_each_in_box(&pc, gather, |id, q| {
+                    let dist = (q - pc).norm();
+                    if id != c && dist < gather {
+                        found.push((dist, id));
+                    }
+                });
+                found.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                let keep = found.len().min(NEAR);
+                near_radius[c as usize] = if keep < found.len() { found[keep].0 } else { gather };
+                near.extend_from_slice(&found[..keep]);
+            }
+            near_start.push(near.len() as u32);
+        }
+        let seeds = grid.seeds();
         Ok(Self {
             master,
             grid,
@@ -446,6 +483,10 @@ impl PaperContact {
             edges_at_start,
             edges_at,
             edge_origin,
+            near_start,
+            near,
+            near_radius,
+            seeds,
         })
     }
 
@@ -469,10 +510,48 @@ impl PaperContact {
         self.d
     }
 
-    /// Exact closest master node (global search).
+    /// Exact closest master node (global search), ties to the smallest node index.
+    ///
+    /// The paper's search: P's bucket and its 26 neighbours. Our certification that the
+    /// node C found there is the closest: if every unvisited bucket is farther than C, done;
+    /// otherwise (C = a precomputed seed node of P's bucket when the block is empty) every
+    /// node N closer to P than C has |CN| ≤ |CP| + |PN| ≤ 2|CP|, so scanning
+    /// C's precomputed neighbourhood (its nearest ≤ 64 nodes within three longest edges, sorted
+    /// by distance) up to 2|CP| is exact when that covers 2|CP|; beyond that (P far from the skull) the bucket search widens until
+    /// certified ([`BucketGrid::nearest`]).
     #[inline]
     pub fn closest_node(&self, p: &Point3<f64>) -> Option<u32> {
-        self.grid.nearest(p, false).map(|n| n.id)
+        let b = self.grid.block(p);
+        if b.best.1 < b.bound * b.bound {
+            return Some(b.best.0);
+        }
+        // Start from the block's nearest, or from the bucket's seed when the block is empty.
+        let (start, start_d2) = if b.best.1.is_finite() {
+            b.best
+        } else {
+            let id = self.seeds[self.grid.flat_of(p)];
+            if id == u32::MAX {
+                return self.grid.nearest_from(p, b, false).map(|n| n.id);
+            }
+            (id, (self.master.vertices[id as usize] - p).norm_squared())
+        };
+        let c = start as usize;
+        let limit = 2.0 * start_d2.sqrt() * (1.0 + 1e-12);
+        if limit < self.near_radius[c] {
+            let mut best = (start, start_d2);
+            let mut next = f64::INFINITY;
+            for &(dist, id) in
+                &self.near[self.near_start[c] as usize..self.near_start[c + 1] as usize]
+            {
+                if dist > limit {
+                    break;
+                }
+                let d2 = (self.master.vertices[id as usize] - p).norm_squared();
+                crate::grid::consider(id, d2, &mut best, &mut next);
+            }
+            return Some(best.0);
+        }
+        self.grid.nearest_from(p, b, false).map(|n| n.id)
     }
 
     /// Local search around closest node `c`, verdict included. `None` when no candidate

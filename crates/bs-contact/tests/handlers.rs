@@ -184,3 +184,27 @@ fn points_outside_the_bucket_grid_get_exact_answers() {
         assert!((p.distance - b.distance).abs() <= tol(b.distance, m.size) && p.outside);
     }
 }
+
+/// The closest master node (27-bucket block, certified by the node neighbourhoods, seeds or
+/// a widened search) is the exact one for points near, deep inside and far outside the
+/// skull: same node as an exhaustive scan with ties to the smallest index.
+#[test]
+fn closest_node_is_exact_everywhere() {
+    for (name, s) in surfaces() {
+        let m = Arc::new(MasterSurface::new(&s).unwrap());
+        let paper = PaperContact::from_master(m.clone(), PaperParams::default()).unwrap();
+        let mut rng = Rng::new(17);
+        for i in 0..600 {
+            let q = match i % 3 {
+                0 => query_near(&m, &mut rng, m.max_edge),
+                1 => common::surface_point(&m, &mut rng) * rng.range(0.0, 1.0), // towards the centre
+                _ => bs_mesh::Point3::from(rng.direction() * rng.range(0.0, 4.0)),
+            };
+            let want = (0..m.vertices.len() as u32)
+                .map(|v| ((m.vertices[v as usize] - q).norm_squared(), v))
+                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
+                .unwrap();
+            assert_eq!(paper.closest_node(&q), Some(want.1), "{name}: query {q:?}");
+        }
+    }
+}
