@@ -90,7 +90,7 @@ use nalgebra::{Point3, Vector3};
 
 use crate::ContactError;
 use crate::enforce::{ClosestPoint, Projection};
-use crate::geometry::{circumcentre, project_inside_segment, project_inside_triangle};
+use crate::geometry::{circumcentre, project_inside_triangle};
 use crate::grid::BucketGrid;
 use crate::master::{Feature, MasterSurface};
 
@@ -461,6 +461,16 @@ pub(crate) struct EdgeAt {
 pub(crate) struct FaceAt {
     face: u32,
     bisector: Vector3<f64>,
+    data: FaceData,
+}
+
+/// An additional edge of a node: one end A, B − A and |B − A|².
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct EdgeSeg {
+    edge: u32,
+    a: Point3<f64>,
+    dir: Vector3<f64>,
+    len2: f64,
 }
 
 /// Most neighbours kept per master node for certifying the closest-node search.
@@ -475,16 +485,16 @@ pub struct PaperContact {
     pub(crate) d: f64,
     pub(crate) d2: f64,
     pub(crate) radius2: Vec<f64>,
-    faces: Vec<FaceData>,
     /// CSR per node: faces at the node with their bisectors.
     faces_at_start: Vec<u32>,
     faces_at: Vec<FaceAt>,
     /// CSR per node: edges at the node, then the node's additional edges (as A→B).
     edges_at_start: Vec<u32>,
     edges_at: Vec<EdgeAt>,
-    /// Start of each edge's segment point A (for additional edges) — the vertex the dir
-    /// starts from.
-    edge_origin: Vec<Point3<f64>>,
+    /// The additional edges of each node (indexed like `lists.edges`), ready to project on.
+    list_edges: Vec<EdgeSeg>,
+    /// The additional faces of each node (indexed like `lists.faces`).
+    list_faces: Vec<FaceData>,
     /// CSR per node: the nearest other used nodes (at most [`NEAR`]), sorted by distance.
     near_start: Vec<u32>,
     near: Vec<(f64, u32)>,
@@ -529,7 +539,6 @@ impl PaperContact {
             }
         };
         let radius2 = master.node_radius.iter().map(|r| r * r).collect();
-        let faces = (0..master.triangles.len()).map(|f| FaceData::new(&master, f)).collect();
         let nv = master.vertices.len();
         let mut faces_at_start = Vec::with_capacity(nv + 1);
         let mut faces_at = Vec::with_capacity(master.node_faces.len());
@@ -541,7 +550,11 @@ impl PaperContact {
             for &f in master.faces_of(c) {
                 let t = master.triangles[f as usize];
                 let k = t.iter().position(|&x| x == c).unwrap_or(0);
-                faces_at.push(FaceAt { face: f, bisector: master.bisectors[f as usize][k] });
+                faces_at.push(FaceAt {
+                    face: f,
+                    bisector: master.bisectors[f as usize][k],
+                    data: FaceData::new(&master, f as usize),
+                });
             }
             for &e in master.edges_of(c) {
                 let ab = master.edges[e as usize];
@@ -552,7 +565,17 @@ impl PaperContact {
             faces_at_start.push(faces_at.len() as u32);
             edges_at_start.push(edges_at.len() as u32);
         }
-        let edge_origin = master.edges.iter().map(|ab| master.vertices[ab[0] as usize]).collect();
+        let list_edges = lists
+            .edges
+            .iter()
+            .map(|&e| {
+                let ab = master.edges[e as usize];
+                let a = master.vertices[ab[0] as usize];
+                let dir = master.vertices[ab[1] as usize] - a;
+                EdgeSeg { edge: e, a, dir, len2: dir.norm_squared() }
+            })
+            .collect();
+        let list_faces = lists.faces.iter().map(|&f| FaceData::new(&master, f as usize)).collect();
         // Node neighbourhoods for certifying the block search: the nearest (at most NEAR)
         // nodes within three longest edges.
         let gather = 3.0 * master.max_edge;
@@ -586,12 +609,12 @@ impl PaperContact {
             d,
             d2: d * d,
             radius2,
-            faces,
             faces_at_start,
             faces_at,
             edges_at_start,
             edges_at,
-            edge_origin,
+            list_edges,
+            list_faces,
             near_start,
             near,
             near_radius,
@@ -685,7 +708,7 @@ impl PaperContact {
                 [self.faces_at_start[ci] as usize..self.faces_at_start[ci + 1] as usize];
             for f in fa {
                 if cp.dot(&f.bisector) > 0.0
-                    && let Some(r) = self.faces[f.face as usize].project_inside(p)
+                    && let Some(r) = f.data.project_inside(p)
                 {
                     offer(r, Feature::Face(f.face));
                 }
@@ -700,19 +723,17 @@ impl PaperContact {
             }
             offer(*pc, Feature::Node(c));
         }
-        for &e in self.lists.edges_of(c) {
-            let ab = m.edges[e as usize];
-            if let Some(r) = project_inside_segment(
-                p,
-                &self.edge_origin[e as usize],
-                &m.vertices[ab[1] as usize],
-            ) {
-                offer(r, Feature::Edge(e));
+        let (es, ee) = (self.lists.edge_start[ci] as usize, self.lists.edge_start[ci + 1] as usize);
+        for e in &self.list_edges[es..ee] {
+            let t = (p - e.a).dot(&e.dir);
+            if t >= 0.0 && t <= e.len2 {
+                offer(e.a + e.dir * (t / e.len2), Feature::Edge(e.edge));
             }
         }
-        for &f in self.lists.faces_of(c) {
-            if let Some(r) = self.faces[f as usize].project_inside(p) {
-                offer(r, Feature::Face(f));
+        let (fs, fe) = (self.lists.face_start[ci] as usize, self.lists.face_start[ci + 1] as usize);
+        for (f, data) in self.lists.faces[fs..fe].iter().zip(&self.list_faces[fs..fe]) {
+            if let Some(r) = data.project_inside(p) {
+                offer(r, Feature::Face(*f));
             }
         }
         let (r, f) = best?;
