@@ -3,10 +3,16 @@
 //! Commands:
 //! * `deps`: checks the crate dependency graph against the layering rules of
 //!   `docs/ARCHITECTURE.md` (also run as a test).
-//! * `bench contact`: the paper's contact benchmark for every handler (release build),
-//!   table written to `docs/contact-bench.md`.
+//! * `bench solver`: TLED kernel ns per element-step (1 vs 2 threads) and DR vs Newton
+//!   wall time.
+//! * `bench contact`: the paper's contact benchmark for every handler, table written to
+//!   `docs/contact-bench.md`.
+//!
+//! Benchmarks always run optimised: from a debug build they re-run themselves with
+//! `cargo run --release`.
 
 mod bench_contact;
+mod bench_solver;
 mod deps;
 
 use std::process::ExitCode;
@@ -16,9 +22,37 @@ cargo xtask <command>
 
 Commands:
   deps            check the workspace crate graph against the layering rules
+  bench solver    kernel ns/element-step (1 vs 2 threads), DR vs Newton (release)
   bench contact   contact handlers on the paper's benchmark (writes docs/contact-bench.md)
   help            print this help
 ";
+
+/// Re-runs this xtask command from a release build; benchmarks of debug code mean nothing.
+fn rerun_in_release(args: &[String]) -> ExitCode {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let status = std::process::Command::new(cargo)
+        .args(["run", "--release", "--quiet", "--package", "xtask", "--"])
+        .args(args)
+        .status();
+    match status {
+        Ok(s) if s.success() => ExitCode::SUCCESS,
+        Ok(_) => ExitCode::FAILURE,
+        Err(e) => {
+            eprintln!("could not run cargo: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn report(result: Result<(), String>, what: &str) -> ExitCode {
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("{what} failed: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -33,15 +67,15 @@ fn main() -> ExitCode {
                 ExitCode::FAILURE
             }
         },
-        Some("bench") if args.get(1).map(String::as_str) == Some("contact") => {
-            match bench_contact::main() {
-                Ok(()) => ExitCode::SUCCESS,
-                Err(e) => {
-                    eprintln!("{e}");
-                    ExitCode::FAILURE
-                }
+        Some("bench") if cfg!(debug_assertions) => rerun_in_release(&args),
+        Some("bench") => match args.get(1).map(String::as_str) {
+            Some("solver") => report(bench_solver::run(), "bench solver"),
+            Some("contact") => report(bench_contact::main(), "bench contact"),
+            _ => {
+                eprintln!("bench what? `cargo xtask bench solver` or `cargo xtask bench contact`");
+                ExitCode::from(2)
             }
-        }
+        },
         None | Some("help" | "--help" | "-h") => {
             print!("{HELP}");
             ExitCode::SUCCESS

@@ -1,7 +1,10 @@
 //! `brainshift`: brain shift computation for image-guided neurosurgery.
 
 mod check;
+mod compose;
+mod gap;
 mod inspect;
+mod run;
 mod scene;
 
 use std::path::PathBuf;
@@ -39,6 +42,57 @@ enum Command {
         /// The scene file (TOML).
         scene: PathBuf,
     },
+    /// Computes the brain shift of a scene and writes DIR/result.vtu (displacement,
+    /// in_contact; von Mises stress and J per element), DIR/displacements.csv and
+    /// DIR/report.json. Without SCENE it runs the bundled real-anatomy demo.
+    Run {
+        /// The scene file (TOML); default: the bundled MNI152 demo scene.
+        scene: Option<PathBuf>,
+        /// Output folder (created if missing).
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// No progress or summary output.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Runs the bundled real-anatomy scene (MNI152 brain in its skull, craniotomy pushed in).
+    Demo {
+        /// Output folder (created if missing).
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+    },
+    /// Brain–skull gap of every boundary node of a mesh (or of points): one CSV row per node
+    /// `id,signed_distance,closest_x,closest_y,closest_z,outside` (positive = inside the
+    /// skull). Exits 1 if any node is outside the skull.
+    Gap {
+        /// Closed, outward-oriented skull surface (.stl, .obj, .off).
+        #[arg(long)]
+        skull: PathBuf,
+        /// Volume mesh whose boundary nodes are measured.
+        #[arg(long, conflicts_with = "points", required_unless_present = "points")]
+        mesh: Option<PathBuf>,
+        /// CSV of points with a header naming columns x, y, z.
+        #[arg(long)]
+        points: Option<PathBuf>,
+        /// Closest-point algorithm.
+        #[arg(long, value_enum, default_value = "paper")]
+        algorithm: GapAlgorithm,
+        /// Write the CSV here instead of standard output.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+}
+
+/// Contact algorithms selectable on the command line.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum GapAlgorithm {
+    Paper,
+    Coherent,
+    Parry,
+    BruteForce,
 }
 
 /// Writes `text` to standard output. A closed pipe (`brainshift inspect x | head`) is not an
@@ -60,6 +114,32 @@ fn main() -> ExitCode {
     let result: Result<ExitCode, Box<dyn std::error::Error>> = match cli.command {
         Command::Inspect { file, json } => inspect::run(&file, json).map_err(Into::into),
         Command::Check { scene } => check::run(&scene).map_err(Into::into),
+        Command::Run { scene, out, threads, quiet } => run::run(&run::RunOptions {
+            scene: scene.unwrap_or_else(run::default_scene),
+            out,
+            threads,
+            quiet,
+        }),
+        Command::Demo { out } => run::run(&run::RunOptions {
+            scene: run::default_scene(),
+            out,
+            threads: None,
+            quiet: false,
+        }),
+        Command::Gap { skull, mesh, points, algorithm, out } => {
+            let query = match (mesh, points) {
+                (Some(m), _) => Ok(gap::Query::Mesh(m)),
+                (None, Some(p)) => Ok(gap::Query::Points(p)),
+                (None, None) => Err("give --mesh VOLUME or --points POINTS.csv".into()),
+            };
+            let algorithm = match algorithm {
+                GapAlgorithm::Paper => scene::Algorithm::Paper,
+                GapAlgorithm::Coherent => scene::Algorithm::Coherent,
+                GapAlgorithm::Parry => scene::Algorithm::Parry,
+                GapAlgorithm::BruteForce => scene::Algorithm::BruteForce,
+            };
+            query.and_then(|q| gap::run(&skull, &q, algorithm, out.as_deref()))
+        }
     };
     match result {
         Ok(code) => code,

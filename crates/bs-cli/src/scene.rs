@@ -42,6 +42,14 @@ pub enum Units {
 }
 
 impl Units {
+    /// Metres per mesh length unit.
+    pub fn metres(self) -> f64 {
+        match self {
+            Units::Mm => 1e-3,
+            Units::M => 1.0,
+        }
+    }
+
     /// The unit's symbol.
     pub fn symbol(self) -> &'static str {
         match self {
@@ -225,6 +233,18 @@ pub struct Contact {
     /// Handler; default `paper`.
     #[serde(default = "default_algorithm")]
     pub algorithm: Algorithm,
+}
+
+impl Algorithm {
+    /// The scene-file name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Algorithm::Paper => "paper",
+            Algorithm::Coherent => "coherent",
+            Algorithm::Parry => "parry",
+            Algorithm::BruteForce => "brute-force",
+        }
+    }
 }
 
 fn default_algorithm() -> Algorithm {

@@ -1,9 +1,65 @@
 //! Total Lagrangian explicit dynamics (TLED) element kernels and the adaptive Dynamic
-//! Relaxation solver.
+//! Relaxation solver, with a static Newton–Raphson reference solver behind the same trait.
 //!
 //! Architecture invariant: this crate knows elements, materials and nodal vectors. It knows
 //! nothing of contact geometry (buckets, triangles, closest points): the contact reaches the
-//! solver only through a small trait owned here, called after every step. It must not depend
-//! on `bs-contact`; `bs-cli` composes the two.
+//! solver only through the small [`Contact`] trait owned here, called after every step. It
+//! must not depend on `bs-contact`; `bs-cli` composes the two.
 //!
-//! The kernels and the solver arrive with the solver issue.
+//! # Using it
+//!
+//! 1. Build a [`Model`] from a [`bs_mesh::Mesh`], a list of [`Solid`]s (law + density) and one
+//!    solid index per element, with [`ModelOptions`] choosing the tetrahedron formulation
+//!    ([`TetFormulation::T4`] or [`TetFormulation::T4Anp`]; hexahedra are always H8 mean
+//!    strain with stiffness hourglass control).
+//! 2. Describe the boundary conditions with [`Loads`]: fixed components and prescribed final
+//!    displacements per node and component; everything else is traction-free.
+//! 3. Pick a [`Solver`]: [`DynamicRelaxation`] (explicit, any element, kinematic contact) or
+//!    [`Newton`] (implicit reference; T4 and H8, no contact), and call
+//!    [`Solver::solve`] with a [`Contact`] handler ([`NoContact`] if none) and an observer.
+//!
+//! ```
+//! use bs_dr::{DynamicRelaxation, DrParams, Loads, Model, ModelOptions, NoContact, Solid, Solver};
+//! use bs_material::Material;
+//! use bs_mesh::{Element, Mesh, Point3};
+//!
+//! let nodes = vec![Point3::new(0.0, 0.0, 0.0), Point3::new(1.0, 0.0, 0.0),
+//!                  Point3::new(0.0, 1.0, 0.0), Point3::new(0.0, 0.0, 1.0)];
+//! let mesh = Mesh::new(nodes, vec![Element::tet4([0, 1, 2, 3])]);
+//! let solid = Solid { material: Material::neo_hookean(3000.0, 0.45)?, density: 1000.0 };
+//! let model = Model::uniform(&mesh, solid, ModelOptions::default())?;
+//! let mut loads = Loads::new(model.node_count());
+//! for n in 0..3 { loads.fix_node(n)?; }          // base fixed
+//! loads.prescribe(3, 2, -0.1)?;                  // apex pushed down by 0.1
+//! let dr = DynamicRelaxation::new(DrParams::default());
+//! let sol = dr.solve(&model, &loads, &mut NoContact, &mut |_p| {})?;
+//! assert!((sol.displacements[3].z + 0.1).abs() < 1e-12);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! Modules: [`model`] (precomputation), [`forces`] (kernels and deterministic parallel
+//! assembly), [`loads`], [`contact`] (the seam), [`solver`] (trait, report, errors),
+//! [`dr`], [`newton`].
+
+#![allow(clippy::needless_range_loop)] // index loops mirror the tensor formulas
+
+pub mod contact;
+pub mod dr;
+pub mod forces;
+pub mod loads;
+pub mod model;
+pub mod newton;
+pub mod post;
+pub mod solver;
+
+pub use contact::{Contact, ContactReport, NoContact};
+pub use dr::{DrParams, DynamicRelaxation};
+pub use forces::{Inversion, Workspace};
+pub use loads::{LoadError, Loads, ramp};
+pub use model::{Model, ModelError, ModelOptions, Solid, TetFormulation};
+pub use newton::{Newton, NewtonParams};
+pub use post::ElementMeasures;
+pub use solver::{Progress, Report, Solution, SolveError, Solver};
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,163 @@
+//! Composition: a checked scene becomes a solver model, loads and a contact handler. This is
+//! the only place that knows both `bs-dr` and `bs-contact`; the adapter [`SkullContact`]
+//! bridges bs-contact's enforcement loop to bs-dr's `Contact` trait.
+
+use bs_contact::{Enforcer, Handler, MasterSurface, PaperParams};
+use bs_dr::{ContactReport, Loads, Model, ModelOptions, Solid, TetFormulation};
+use bs_material::{Material, OgdenParams};
+
+use crate::check::{CheckError, Prepared};
+use crate::scene::{Algorithm, ElementChoice, MaterialModel};
+
+/// bs-contact's enforcement loop seen through bs-dr's contact seam.
+#[derive(Debug)]
+pub struct SkullContact(pub Enforcer<Handler>);
+
+impl bs_dr::Contact for SkullContact {
+    fn enforce(&mut self, positions: &mut [bs_mesh::Point3<f64>]) -> ContactReport {
+        let r = self.0.enforce(positions);
+        ContactReport { nodes_in_contact: r.nodes_in_contact, max_penetration: r.max_penetration }
+    }
+}
+
+/// Everything a solver run needs.
+#[derive(Debug)]
+pub struct Composed {
+    /// The finite-element model.
+    pub model: Model,
+    /// Fixed and prescribed displacements.
+    pub loads: Loads,
+    /// Slave nodes: boundary nodes of the brain without prescribed components.
+    pub slaves: Vec<usize>,
+    /// The skull's precomputed surface (for gap checks), if the scene has contact.
+    pub master: Option<MasterSurface>,
+    /// The contact handler, if the scene has contact.
+    pub contact: Option<SkullContact>,
+    /// The length by which solver tolerances are scaled (largest prescribed displacement
+    /// component, or the mesh diagonal without loads): bs-dr's tolerances are relative.
+    pub load_scale: f64,
+}
+
+/// The bs-material law of a scene material.
+pub fn material(m: &crate::scene::Material) -> Result<Material, String> {
+    let moduli = m.moduli()?;
+    let (mu, kappa) = (moduli.mu, moduli.kappa);
+    // E and ν from μ and κ (exact inverse of the scene's conversion).
+    let young = 9.0 * kappa * mu / (3.0 * kappa + mu);
+    let poisson = (3.0 * kappa - 2.0 * mu) / (2.0 * (3.0 * kappa + mu));
+    let law = match m.model {
+        MaterialModel::NeoHookean => Material::neo_hookean(young, poisson),
+        MaterialModel::Svk => Material::st_venant_kirchhoff(young, poisson),
+        MaterialModel::Ogden => {
+            let alpha = m.alpha.ok_or("ogden needs alpha")?;
+            OgdenParams::new(mu, alpha, kappa).map(Material::Ogden)
+        }
+    };
+    law.map_err(|e| e.to_string())
+}
+
+/// Builds model, loads and contact from a checked scene.
+pub fn compose(p: &Prepared) -> Result<Composed, CheckError> {
+    let solids = p
+        .scene
+        .regions
+        .iter()
+        .map(|r| {
+            material(&r.material)
+                .map(|material| Solid { material, density: r.material.density })
+                .map_err(|e| CheckError(format!("region '{}': {e}", r.elset)))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let tet = match p.element {
+        ElementChoice::T4 => TetFormulation::T4,
+        ElementChoice::T4anp | ElementChoice::H8 => TetFormulation::T4Anp,
+    };
+    let options = ModelOptions { tet, ..ModelOptions::default() };
+    let model = Model::new(&p.mesh, &solids, &p.region_of_element, options)
+        .map_err(|e| CheckError(format!("{}: {e}", p.scene.mesh.file.display())))?;
+
+    let mut loads = Loads::new(model.node_count());
+    for (n, comps) in p.prescribed.iter().enumerate() {
+        for (c, v) in comps.iter().enumerate() {
+            let result = match v {
+                Some(v) if *v == 0.0 => loads.fix(n, c),
+                Some(v) => loads.prescribe(n, c, *v),
+                None => Ok(()),
+            };
+            result.map_err(|e| CheckError(format!("node {}: {e}", p.mesh.node_ids[n])))?;
+        }
+    }
+    let load_scale = if loads.max_prescribed() > 0.0 {
+        loads.max_prescribed()
+    } else {
+        p.mesh.bounding_box().map_or(1.0, |(lo, hi)| (hi - lo).norm()).max(f64::MIN_POSITIVE)
+    };
+
+    let slaves: Vec<usize> = p
+        .mesh
+        .boundary()
+        .volume_node
+        .into_iter()
+        .filter(|&n| p.prescribed[n].iter().all(Option::is_none))
+        .collect();
+
+    let (master, contact) = match (&p.skull, &p.scene.contact) {
+        (Some(skull), Some(c)) => {
+            let master = MasterSurface::new(skull)
+                .map_err(|e| CheckError(format!("{}: {e}", c.skull.display())))?;
+            let handler = Handler::new(algorithm(c.algorithm), skull, PaperParams::default())
+                .map_err(|e| CheckError(format!("{}: {e}", c.skull.display())))?;
+            let enforcer = Enforcer::new(handler, slaves.clone(), model.node_count())
+                .map_err(|e| CheckError(e.to_string()))?;
+            (Some(master), Some(SkullContact(enforcer)))
+        }
+        _ => (None, None),
+    };
+    Ok(Composed { model, loads, slaves, master, contact, load_scale })
+}
+
+/// The bs-contact algorithm named by a scene.
+pub fn algorithm(a: Algorithm) -> bs_contact::Algorithm {
+    match a {
+        Algorithm::Paper => bs_contact::Algorithm::Paper,
+        Algorithm::Coherent => bs_contact::Algorithm::Coherent,
+        Algorithm::Parry => bs_contact::Algorithm::Parry,
+        Algorithm::BruteForce => bs_contact::Algorithm::BruteForce,
+    }
+}
+
+impl Composed {
+    /// Slave nodes outside the skull in the reference configuration: an error listing their
+    /// ids and distances (a run would snap them onto the skull at the first step).
+    pub fn check_initial_gap(&self, p: &Prepared) -> Result<Option<(f64, f64)>, CheckError> {
+        let Some(master) = &self.master else { return Ok(None) };
+        // Exact distances (brute force: this runs once, before the solve).
+        let mut brute = bs_contact::BruteForce::from_master(std::sync::Arc::new(master.clone()));
+        let points: Vec<_> = self.slaves.iter().map(|&n| p.mesh.nodes[n]).collect();
+        let rows = bs_contact::gap(&mut brute, master, &points);
+        let outside: Vec<(usize, f64)> = rows
+            .iter()
+            .zip(&self.slaves)
+            .filter(|(r, _)| r.outside)
+            .map(|(r, &n)| (n, -r.signed_distance))
+            .collect();
+        if !outside.is_empty() {
+            let list: Vec<String> = outside
+                .iter()
+                .take(10)
+                .map(|&(n, d)| format!("node {} ({d:.4} outside)", p.mesh.node_ids[n]))
+                .collect();
+            return Err(CheckError(format!(
+                "{} brain surface nodes are outside the skull before any load: {}{}; the brain \
+                 must start inside the skull cavity (check the skull file, its units and its \
+                 registration to the mesh)",
+                outside.len(),
+                list.join(", "),
+                if outside.len() > 10 { ", ..." } else { "" }
+            )));
+        }
+        let min = rows.iter().map(|r| r.signed_distance).fold(f64::INFINITY, f64::min);
+        let max = rows.iter().map(|r| r.signed_distance).fold(f64::NEG_INFINITY, f64::max);
+        Ok(Some((min, max)))
+    }
+}

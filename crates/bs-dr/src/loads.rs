@@ -1,0 +1,155 @@
+//! Boundary conditions: fixed and prescribed displacement components ("displacement – zero
+//! traction"): every component not constrained here is traction-free.
+
+use bs_mesh::Vector3;
+
+/// Errors defining [`Loads`].
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum LoadError {
+    /// A node index beyond the mesh.
+    #[error("node index {node} is out of range: the mesh has {count} nodes")]
+    NodeOutOfRange {
+        /// The node index.
+        node: usize,
+        /// Number of nodes.
+        count: usize,
+    },
+    /// A component index other than 0, 1, 2.
+    #[error("displacement component {0} is out of range: use 0 (x), 1 (y) or 2 (z)")]
+    ComponentOutOfRange(usize),
+    /// A non-finite prescribed value.
+    #[error(
+        "prescribed displacement of node {node} component {component} is {value}: must be finite"
+    )]
+    NonFinite {
+        /// The node index.
+        node: usize,
+        /// The component.
+        component: usize,
+        /// The value.
+        value: f64,
+    },
+}
+
+/// Per-node, per-component displacement constraints. A constrained component follows the
+/// 3-4-5 ramp [`ramp`] from 0 to its final value; "fixed" is a final value of 0.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Loads {
+    constrained: Vec<[bool; 3]>,
+    value: Vec<Vector3<f64>>,
+}
+
+/// Smooth 3-4-5 polynomial ramp `10τ³ − 15τ⁴ + 6τ⁵` for `τ ∈ [0, 1]` (clamped outside):
+/// zero velocity and acceleration at both ends.
+pub fn ramp(tau: f64) -> f64 {
+    let t = tau.clamp(0.0, 1.0);
+    t * t * t * (10.0 + t * (-15.0 + 6.0 * t))
+}
+
+impl Loads {
+    /// No constraints on `node_count` nodes.
+    pub fn new(node_count: usize) -> Self {
+        Loads {
+            constrained: vec![[false; 3]; node_count],
+            value: vec![Vector3::zeros(); node_count],
+        }
+    }
+
+    fn check(&self, node: usize, component: usize) -> Result<(), LoadError> {
+        if node >= self.constrained.len() {
+            return Err(LoadError::NodeOutOfRange { node, count: self.constrained.len() });
+        }
+        if component > 2 {
+            return Err(LoadError::ComponentOutOfRange(component));
+        }
+        Ok(())
+    }
+
+    /// Fixes one component of a node (final displacement 0).
+    pub fn fix(&mut self, node: usize, component: usize) -> Result<(), LoadError> {
+        self.prescribe(node, component, 0.0)
+    }
+
+    /// Fixes all three components of a node.
+    pub fn fix_node(&mut self, node: usize) -> Result<(), LoadError> {
+        self.prescribe_node(node, Vector3::zeros())
+    }
+
+    /// Prescribes the final displacement of one component of a node.
+    pub fn prescribe(
+        &mut self,
+        node: usize,
+        component: usize,
+        value: f64,
+    ) -> Result<(), LoadError> {
+        self.check(node, component)?;
+        if !value.is_finite() {
+            return Err(LoadError::NonFinite { node, component, value });
+        }
+        self.constrained[node][component] = true;
+        self.value[node][component] = value;
+        Ok(())
+    }
+
+    /// Prescribes the final displacement vector of a node (all three components).
+    pub fn prescribe_node(&mut self, node: usize, value: Vector3<f64>) -> Result<(), LoadError> {
+        for k in 0..3 {
+            self.prescribe(node, k, value[k])?;
+        }
+        Ok(())
+    }
+
+    /// Removes any constraint from one component.
+    pub fn release(&mut self, node: usize, component: usize) -> Result<(), LoadError> {
+        self.check(node, component)?;
+        self.constrained[node][component] = false;
+        self.value[node][component] = 0.0;
+        Ok(())
+    }
+
+    /// Number of nodes.
+    pub fn node_count(&self) -> usize {
+        self.constrained.len()
+    }
+
+    /// Whether a component is constrained.
+    pub fn is_constrained(&self, node: usize, component: usize) -> bool {
+        self.constrained[node][component]
+    }
+
+    /// Whether any component of a node is constrained.
+    pub fn is_node_constrained(&self, node: usize) -> bool {
+        self.constrained[node].iter().any(|&c| c)
+    }
+
+    /// Final prescribed value of a component (0 for free components).
+    pub fn value(&self, node: usize, component: usize) -> f64 {
+        self.value[node][component]
+    }
+
+    /// Largest final prescribed component magnitude.
+    pub fn max_prescribed(&self) -> f64 {
+        self.value.iter().flat_map(|v| v.iter()).fold(0.0f64, |a, &x| a.max(x.abs()))
+    }
+
+    /// Number of constrained components.
+    pub fn constrained_count(&self) -> usize {
+        self.constrained.iter().flatten().filter(|&&c| c).count()
+    }
+
+    /// Flat DOF indices (`3·node + component`) of the free and constrained components.
+    pub(crate) fn split_dofs(&self) -> (Vec<usize>, Vec<usize>) {
+        let mut free = Vec::new();
+        let mut fixed = Vec::new();
+        for (n, c) in self.constrained.iter().enumerate() {
+            for k in 0..3 {
+                if c[k] {
+                    fixed.push(3 * n + k);
+                } else {
+                    free.push(3 * n + k);
+                }
+            }
+        }
+        (free, fixed)
+    }
+}

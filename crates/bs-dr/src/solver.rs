@@ -1,0 +1,222 @@
+//! What every solver shares: the [`Solver`] trait, the progress record passed to observers,
+//! the report, the solution and the typed errors.
+
+use std::time::Duration;
+
+use bs_mesh::Vector3;
+
+use crate::contact::{Contact, ContactReport};
+use crate::loads::Loads;
+use crate::model::Model;
+
+/// Progress of one step (DR) or one iteration (Newton), passed to the observer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Progress {
+    /// Step (DR) or cumulative iteration (Newton) number, from 1.
+    pub step: usize,
+    /// Current error estimate (DR: `max|Δu| ρₑ/(1−ρₑ)`; Newton: `max|δu|`), length units.
+    pub err: f64,
+    /// DR convergence rate ρ in use (Newton: 0).
+    pub rho: f64,
+    /// Load factor of the prescribed displacements (the 3-4-5 ramp value, or the load-step
+    /// fraction for Newton), in `[0, 1]`.
+    pub load_factor: f64,
+    /// Largest nodal displacement magnitude.
+    pub max_displacement: f64,
+    /// What the contact handler did in this step.
+    pub contact: ContactReport,
+}
+
+/// Summary of a successful solve.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Report {
+    /// Solver name (`"dynamic-relaxation"`, `"newton"`).
+    pub solver: &'static str,
+    /// DR steps, or total Newton iterations.
+    pub steps: usize,
+    /// Final error estimate (length units).
+    pub err: f64,
+    /// The tolerance it was compared with (length units).
+    pub tolerance: f64,
+    /// Final DR convergence rate ρ (Newton: 0).
+    pub rho: f64,
+    /// Final DR lowest-eigenvalue estimate `ω_min` in units of 1/h (Newton: 0).
+    pub omega_min: f64,
+    /// Contact report of the last step.
+    pub contact: ContactReport,
+    /// Wall-clock time of the solve.
+    pub elapsed: Duration,
+}
+
+/// Displacements and report of a successful solve.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Solution {
+    /// Nodal displacements, indexed like the mesh nodes.
+    pub displacements: Vec<Vector3<f64>>,
+    /// Summary.
+    pub report: Report,
+}
+
+/// Why a solve stopped without an answer. Every variant names the cause and the fix.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SolveError {
+    /// A solver parameter is out of range.
+    #[error("invalid solver parameter {name} = {value}: {requirement}")]
+    InvalidParams {
+        /// Parameter name.
+        name: &'static str,
+        /// Value given.
+        value: f64,
+        /// What it must satisfy.
+        requirement: &'static str,
+    },
+    /// The loads were built for a different number of nodes.
+    #[error(
+        "loads are defined for {got} nodes but the model has {expected}: build Loads::new(model.node_count())"
+    )]
+    LoadMismatch {
+        /// Model node count.
+        expected: usize,
+        /// Loads node count.
+        got: usize,
+    },
+    /// A displacement became NaN or infinite.
+    #[error(
+        "non-finite displacement at step {step}: the solution blew up; reduce the time step \
+         (step_fraction) or the load, and check the material parameters"
+    )]
+    NotFinite {
+        /// Step at which it was detected.
+        step: usize,
+    },
+    /// An element turned inside out.
+    #[error(
+        "element {element} (id {element_id}) inverted at step {step} (det F = {jacobian:e}): the \
+         prescribed displacements are too large for this mesh (refine it or reduce the load), \
+         or the time step is above critical (reduce step_fraction)"
+    )]
+    ElementInverted {
+        /// Step at which it was detected.
+        step: usize,
+        /// Element index (mesh order).
+        element: usize,
+        /// External element id.
+        element_id: u64,
+        /// The offending `det F` (or `J̄` for T4ANP).
+        jacobian: f64,
+    },
+    /// The iteration is unstable: the step-to-step change grows while alternating in sign,
+    /// the signature of a time step above the critical one.
+    #[error(
+        "unstable iteration at step {step}: |Δu| grew by {growth:.2}x per step with alternating \
+         sign for {steps} steps — the time step is above critical; reduce step_fraction (now \
+         {step_fraction})"
+    )]
+    Unstable {
+        /// Step at which it was detected.
+        step: usize,
+        /// Average growth factor of |Δu| per step over the detection window.
+        growth: f64,
+        /// Length of the detection window.
+        steps: usize,
+        /// The step fraction in use.
+        step_fraction: f64,
+    },
+    /// Displacements grew far beyond the prescribed ones.
+    #[error(
+        "displacement grew without bound at step {step}: max |u| = {max_displacement:e} exceeds \
+         {limit:e} (divergence_factor × load scale); reduce step_fraction or check the \
+         constraints (an unconstrained rigid-body mode?)"
+    )]
+    Diverged {
+        /// Step at which it was detected.
+        step: usize,
+        /// Largest displacement magnitude.
+        max_displacement: f64,
+        /// The bound it exceeded.
+        limit: f64,
+    },
+    /// The step budget was exhausted.
+    #[error(
+        "no convergence within {steps} steps: error estimate {err:e} is above the tolerance \
+         {tolerance:e}; raise max_steps, loosen the tolerance, or check for an unconstrained \
+         (rigid-body) mode"
+    )]
+    NoConvergence {
+        /// Error estimate reached.
+        err: f64,
+        /// Steps taken.
+        steps: usize,
+        /// The tolerance (length units).
+        tolerance: f64,
+    },
+    /// The tangent matrix could not be factorised.
+    #[error(
+        "tangent stiffness is singular or indefinite at load step {load_step}, iteration \
+         {iteration}: the model has an unconstrained rigid-body mode or buckles; add fixed \
+         nodes or use more load steps"
+    )]
+    SingularTangent {
+        /// Load step (from 1).
+        load_step: usize,
+        /// Newton iteration within the load step (from 1).
+        iteration: usize,
+    },
+    /// The solver does not support a feature of the model.
+    #[error("{solver} does not support {what}: {fix}")]
+    Unsupported {
+        /// Solver name.
+        solver: &'static str,
+        /// The unsupported feature.
+        what: &'static str,
+        /// What to do instead.
+        fix: &'static str,
+    },
+}
+
+/// A static solver: DR and Newton are interchangeable behind this trait.
+pub trait Solver {
+    /// Solver name for reports.
+    fn name(&self) -> &'static str;
+
+    /// Solves for the equilibrium displacements of `model` under `loads` (prescribed
+    /// displacements reach their final values, zero traction elsewhere), with the kinematic
+    /// `contact` applied after every step, calling `observer` once per step or iteration.
+    fn solve(
+        &self,
+        model: &Model,
+        loads: &Loads,
+        contact: &mut dyn Contact,
+        observer: &mut dyn FnMut(&Progress),
+    ) -> Result<Solution, SolveError>;
+}
+
+pub(crate) fn check_param(
+    name: &'static str,
+    value: f64,
+    ok: bool,
+    requirement: &'static str,
+) -> Result<(), SolveError> {
+    if ok && value.is_finite() {
+        Ok(())
+    } else {
+        Err(SolveError::InvalidParams { name, value, requirement })
+    }
+}
+
+/// Length scale of a problem: the largest prescribed displacement component, or the
+/// bounding-box diagonal when nothing moves.
+pub(crate) fn load_scale(model: &Model, loads: &Loads) -> f64 {
+    let m = loads.max_prescribed();
+    if m > 0.0 {
+        return m;
+    }
+    let pts = model.reference();
+    let mut lo = pts[0];
+    let mut hi = pts[0];
+    for p in pts {
+        lo = lo.inf(p);
+        hi = hi.sup(p);
+    }
+    (hi - lo).norm().max(f64::MIN_POSITIVE)
+}

@@ -1,0 +1,218 @@
+//! `cargo xtask bench solver`: speed of the TLED kernels and of DR against Newton.
+//!
+//! Run in release (`cargo xtask bench solver` builds xtask in the dev profile, so this
+//! command re-invokes itself through `cargo run --release` unless `--no-rebuild` is given).
+//!
+//! 1. ns per element-step of `Model::internal_forces_into` for T4, T4ANP and H8 on meshes of
+//!    ≥ 50 000 elements (jittered structured cubes), in explicit rayon pools of 1 and 2
+//!    threads, with the 2-thread speed-up.
+//! 2. DR steps and wall time against the Newton reference on a ~10 000-node T4 cube (bottom
+//!    clamped, top pushed down by 20% of the height), with their max nodal difference.
+
+use std::time::{Duration, Instant};
+
+use bs_dr::{
+    DrParams, DynamicRelaxation, Loads, Model, ModelOptions, Newton, NewtonParams, NoContact,
+    Solid, Solver, TetFormulation,
+};
+use bs_material::Material;
+use bs_mesh::{Element, Mesh, Point3, Vector3};
+
+fn grid_nodes(n: usize, jitter: f64) -> Vec<Point3<f64>> {
+    let h = 1.0 / n as f64;
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut rnd = || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut nodes = Vec::with_capacity((n + 1).pow(3));
+    for k in 0..=n {
+        for j in 0..=n {
+            for i in 0..=n {
+                let mut p = Point3::new(i as f64 * h, j as f64 * h, k as f64 * h);
+                if i > 0 && i < n && j > 0 && j < n && k > 0 && k < n {
+                    for c in 0..3 {
+                        p[c] += jitter * h * (2.0 * rnd() - 1.0);
+                    }
+                }
+                nodes.push(p);
+            }
+        }
+    }
+    nodes
+}
+
+fn cell(n: usize, i: usize, j: usize, k: usize) -> [usize; 8] {
+    let id = |i: usize, j: usize, k: usize| i + (n + 1) * (j + (n + 1) * k);
+    [
+        id(i, j, k),
+        id(i + 1, j, k),
+        id(i + 1, j + 1, k),
+        id(i, j + 1, k),
+        id(i, j, k + 1),
+        id(i + 1, j, k + 1),
+        id(i + 1, j + 1, k + 1),
+        id(i, j + 1, k + 1),
+    ]
+}
+
+/// Unit cube of `n³` cells; hexes, or 6 tets per cell (Kuhn split, conforming).
+fn cube(n: usize, tets: bool) -> Mesh {
+    let nodes = grid_nodes(n, 0.2);
+    let mut elements = Vec::new();
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let c = cell(n, i, j, k);
+                if tets {
+                    for p in [[1, 2], [1, 5], [4, 5], [4, 7], [3, 7], [3, 2]] {
+                        let mut t = [c[0], c[p[0]], c[p[1]], c[6]];
+                        let v = (nodes[t[1]] - nodes[t[0]])
+                            .cross(&(nodes[t[2]] - nodes[t[0]]))
+                            .dot(&(nodes[t[3]] - nodes[t[0]]));
+                        if v < 0.0 {
+                            t.swap(1, 2);
+                        }
+                        elements.push(Element::tet4(t));
+                    }
+                } else {
+                    elements.push(Element::hex8(c));
+                }
+            }
+        }
+    }
+    Mesh::new(nodes, elements)
+}
+
+fn model(mesh: &Mesh, tet: TetFormulation) -> Model {
+    let material = Material::neo_hookean(3000.0, 0.49).expect("valid material");
+    Model::uniform(
+        mesh,
+        Solid { material, density: 1000.0 },
+        ModelOptions { tet, ..Default::default() },
+    )
+    .expect("valid model")
+}
+
+fn pool(threads: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool")
+}
+
+/// Best-of-5 time per force evaluation (each sample long enough to be ≥ 0.2 s).
+fn time_forces(model: &Model, u: &[Vector3<f64>], threads: usize) -> Duration {
+    pool(threads).install(|| {
+        let mut ws = model.workspace();
+        let mut f = vec![Vector3::zeros(); model.node_count()];
+        model.internal_forces_into(u, &mut ws, &mut f).expect("no inversion");
+        let t = Instant::now();
+        model.internal_forces_into(u, &mut ws, &mut f).expect("no inversion");
+        let once = t.elapsed().as_secs_f64().max(1e-6);
+        let reps = ((0.2 / once).ceil() as usize).max(3);
+        let mut best = Duration::MAX;
+        for _ in 0..5 {
+            let t = Instant::now();
+            for _ in 0..reps {
+                model.internal_forces_into(u, &mut ws, &mut f).expect("no inversion");
+            }
+            best = best.min(t.elapsed() / reps as u32);
+        }
+        std::hint::black_box(&f);
+        best
+    })
+}
+
+/// Runs the benchmark and prints the table.
+pub fn run() -> Result<(), String> {
+    println!("brainshift solver benchmark (Neo-Hookean E = 3000, nu = 0.49; best of 5)");
+    println!("NOTE: shared 2-core machine, numbers are noisy.\n");
+    println!(
+        "{:<7} {:>9} {:>9} {:>12} {:>12} {:>9}",
+        "kernel", "elements", "nodes", "1 thr ns/el", "2 thr ns/el", "speed-up"
+    );
+    let t4_mesh = cube(21, true); // 55 566 tets, 10 648 nodes
+    let h8_mesh = cube(37, false); // 50 653 hexes
+    for (name, mesh, tet) in [
+        ("T4", &t4_mesh, TetFormulation::T4),
+        ("T4ANP", &t4_mesh, TetFormulation::T4Anp),
+        ("H8", &h8_mesh, TetFormulation::T4),
+    ] {
+        let m = model(mesh, tet);
+        let u: Vec<Vector3<f64>> = mesh
+            .nodes
+            .iter()
+            .map(|p| Vector3::new(0.02 * (3.0 * p.z).sin(), 0.01 * p.x * p.y, -0.03 * p.z * p.z))
+            .collect();
+        let ne = mesh.elements.len() as f64;
+        let t1 = time_forces(&m, &u, 1).as_secs_f64() * 1e9 / ne;
+        let t2 = time_forces(&m, &u, 2).as_secs_f64() * 1e9 / ne;
+        println!(
+            "{:<7} {:>9} {:>9} {:>12.1} {:>12.1} {:>8.2}x",
+            name,
+            mesh.elements.len(),
+            mesh.nodes.len(),
+            t1,
+            t2,
+            t1 / t2
+        );
+    }
+
+    // DR vs Newton on the 10 648-node T4 cube.
+    let m = model(&t4_mesh, TetFormulation::T4);
+    let mut loads = Loads::new(t4_mesh.nodes.len());
+    for (i, p) in t4_mesh.nodes.iter().enumerate() {
+        if p.z.abs() < 1e-12 {
+            loads.fix_node(i).map_err(|e| e.to_string())?;
+        }
+        if (p.z - 1.0).abs() < 1e-12 {
+            loads.prescribe_node(i, Vector3::new(0.0, 0.0, -0.2)).map_err(|e| e.to_string())?;
+        }
+    }
+    println!(
+        "\nDR vs Newton: T4 cube, {} nodes, {} tets, top pushed 20% (2 threads)",
+        t4_mesh.nodes.len(),
+        t4_mesh.elements.len()
+    );
+    let (dr, newton) = pool(2).install(|| {
+        let dr = DynamicRelaxation::new(DrParams::default()).solve(
+            &m,
+            &loads,
+            &mut NoContact,
+            &mut |_| {},
+        );
+        let newton = Newton::new(NewtonParams { load_steps: 5, ..Default::default() }).solve(
+            &m,
+            &loads,
+            &mut NoContact,
+            &mut |_| {},
+        );
+        (dr, newton)
+    });
+    let dr = dr.map_err(|e| format!("DR: {e}"))?;
+    let newton = newton.map_err(|e| format!("Newton: {e}"))?;
+    let diff = dr
+        .displacements
+        .iter()
+        .zip(&newton.displacements)
+        .fold(0.0f64, |a, (x, y)| a.max((x - y).amax()));
+    println!(
+        "DR:     {:>7} steps  {:>8.2} s  ({:.1} us/step, rho {:.5}, err {:.2e})",
+        dr.report.steps,
+        dr.report.elapsed.as_secs_f64(),
+        dr.report.elapsed.as_secs_f64() * 1e6 / dr.report.steps as f64,
+        dr.report.rho,
+        dr.report.err
+    );
+    println!(
+        "Newton: {:>7} iters  {:>8.2} s  (5 load steps, sparse Cholesky)",
+        newton.report.steps,
+        newton.report.elapsed.as_secs_f64()
+    );
+    println!(
+        "max nodal |u_DR - u_Newton| = {diff:.2e} (load 0.2, DR tolerance {:.1e}); wall-time ratio DR/Newton = {:.2}",
+        dr.report.tolerance,
+        dr.report.elapsed.as_secs_f64() / newton.report.elapsed.as_secs_f64()
+    );
+    Ok(())
+}
