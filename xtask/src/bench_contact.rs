@@ -5,7 +5,7 @@
 //! small displacements that drive nodes across the skull, contact enforced after every step;
 //! then the same with the skull refined 4× (15840 faces). Reports µs per slave-node-step
 //! (time inside `enforce` only) and ratios, and writes the table to docs/contact-bench.md.
-//! Rebuilds itself in release mode if run from a debug build.
+//! The xtask dispatcher re-runs it from a release build.
 
 use std::fmt::Write as _;
 use std::sync::Arc;
@@ -219,19 +219,6 @@ fn bench_all(skull: &TriSurface, s: &Scenario) -> Result<(Runs, String), String>
 
 /// Runs the benchmark, prints the table and writes docs/contact-bench.md.
 pub fn main() -> Result<(), String> {
-    if cfg!(debug_assertions) {
-        // The xtask alias builds in debug; timings need an optimised build of bs-contact.
-        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-        let status = std::process::Command::new(cargo)
-            .args(["run", "--quiet", "--release", "--package", "xtask", "--", "bench", "contact"])
-            .status()
-            .map_err(|e| format!("could not re-run the benchmark in release mode: {e}"))?;
-        return if status.success() {
-            Ok(())
-        } else {
-            Err(format!("release benchmark failed: {status}"))
-        };
-    }
     let s = scenario();
     let (base_skull, refined_skull) = skulls();
     let (base, base_info) = bench_all(&base_skull, &s)?;
