@@ -187,7 +187,7 @@ impl BucketGrid {
     /// than anything unvisited. A point outside the grid is clamped to the nearest bucket and
     /// the same certification applies, so it also gets the exact answer. With `second`, the
     /// search goes on until the second-nearest distance is exact too. `None` if the grid is
-    /// empty.
+    /// empty or `p` is not finite.
     pub fn nearest(&self, p: &Point3<f64>, second: bool) -> Option<Nearest> {
         if self.ids.is_empty() {
             return None;
@@ -197,7 +197,7 @@ impl BucketGrid {
 
     /// [`nearest`](Self::nearest) continued from an already computed block search.
     pub fn nearest_from(&self, p: &Point3<f64>, block: Block, second: bool) -> Option<Nearest> {
-        if self.ids.is_empty() {
+        if self.ids.is_empty() || !p.coords.iter().all(|x| x.is_finite()) {
             return None;
         }
         let Block { c, best, next, .. } = block;
@@ -218,6 +218,10 @@ impl BucketGrid {
                 break;
             }
             r += 1;
+            if r > self.dims.iter().copied().max().unwrap_or(0) {
+                // The block covers the grid: every item has been visited.
+                return Some(Nearest { id: best.0, d2: best.1, other_lb: next.sqrt() });
+            }
             self.for_shell(c, r, |range| visit(range, &mut best, &mut next));
         }
         // Certification: visit the buckets outside the block that intersect the ball of the

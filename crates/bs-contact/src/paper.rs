@@ -642,7 +642,8 @@ impl PaperContact {
         self.d
     }
 
-    /// Exact closest master node (global search), ties to the smallest node index.
+    /// Exact closest master node (global search), ties to the smallest node index; `None`
+    /// for a non-finite point.
     ///
     /// The paper's search: P's bucket and its 26 neighbours. Our certification that the
     /// node C found there is the closest: if every unvisited bucket is farther than C, done;
@@ -653,6 +654,9 @@ impl PaperContact {
     /// certified ([`BucketGrid::nearest`]).
     #[inline]
     pub fn closest_node(&self, p: &Point3<f64>) -> Option<u32> {
+        if !p.coords.iter().all(|x| x.is_finite()) {
+            return None;
+        }
         let b = self.grid.block(p);
         if b.best.1 < b.bound * b.bound {
             return Some(b.best.0);
