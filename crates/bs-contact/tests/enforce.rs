@@ -109,7 +109,7 @@ fn coherent_matches_paper_every_step_of_a_random_walk() {
         .unwrap();
         let (mut pa, mut pb) = (start.clone(), start.clone());
         let mut rng = Rng::new(seed + 100);
-        for step in 0..150 {
+        for step in 0..400 {
             // Tiny DR-like steps most of the time, an occasional jump.
             let scale = if step % 37 == 0 { 0.5 * d } else { 0.02 * d };
             for &s in &slaves {

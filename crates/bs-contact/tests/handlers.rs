@@ -22,7 +22,7 @@ fn handlers_agree_with_brute_force_on_random_surfaces() {
         let brute = BruteForce::from_master(m.clone());
         let parry = ParryContact::from_master(&m).unwrap();
         let mut rng = Rng::new(42);
-        let queries: Vec<_> = (0..600)
+        let queries: Vec<_> = (0..3000)
             .map(|_| {
                 let q = query_near(&m, &mut rng, 2.0 * m.max_edge);
                 (q, brute.project(&q))
@@ -36,8 +36,8 @@ fn handlers_agree_with_brute_force_on_random_surfaces() {
                 "{name}: parry {pa:?} vs brute {b:?} at {q:?}"
             );
         }
-        // d from a quarter edge (the default) to one edge (long lists).
-        for d_factor in [0.25, 1.0] {
+        // d from a quarter edge (the default) to two edges (long lists).
+        for d_factor in [0.25, 1.0, 2.0] {
             let d = d_factor * m.max_edge;
             let params = PaperParams { max_step_penetration: Some(d), ..Default::default() };
             let paper = PaperContact::from_master(m.clone(), params).unwrap();
