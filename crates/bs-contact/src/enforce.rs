@@ -73,6 +73,10 @@ pub struct EnforceReport {
 pub struct Enforcer<H> {
     handler: H,
     slaves: Vec<usize>,
+    /// Processing order of the slaves (positions in `slaves`), spatially sorted at the first
+    /// call so that consecutive queries touch nearby master data (cache locality). The order
+    /// does not change any result: each slave is corrected independently.
+    order: Vec<u32>,
 }
 
 impl<H: ClosestPoint> Enforcer<H> {
@@ -82,15 +86,19 @@ impl<H: ClosestPoint> Enforcer<H> {
         if let Some(&node) = slaves.iter().find(|&&s| s >= node_count) {
             return Err(ContactError::SlaveOutOfRange { node, node_count });
         }
-        Ok(Self { handler, slaves })
+        Ok(Self { handler, slaves, order: Vec::new() })
     }
 
     /// Moves every slave that is outside the cavity to the closest point of the master
     /// surface. `positions` are the current coordinates of all mesh nodes. No allocation.
     pub fn enforce(&mut self, positions: &mut [Point3<f64>]) -> EnforceReport {
+        if self.order.len() != self.slaves.len() {
+            self.order = spatial_order(&self.slaves, positions);
+        }
         let mut report = EnforceReport::default();
-        for (k, &node) in self.slaves.iter().enumerate() {
-            let Some(p) = positions.get_mut(node) else { continue };
+        for &k in &self.order {
+            let k = k as usize;
+            let Some(p) = positions.get_mut(self.slaves[k]) else { continue };
             if let Some(proj) = self.handler.closest(k, p)
                 && proj.outside
             {
@@ -116,6 +124,39 @@ impl<H: ClosestPoint> Enforcer<H> {
     pub fn handler_mut(&mut self) -> &mut H {
         &mut self.handler
     }
+}
+
+/// Positions in `slaves` sorted by the Morton (Z-order) code of the slave positions.
+fn spatial_order(slaves: &[usize], positions: &[Point3<f64>]) -> Vec<u32> {
+    let pts: Vec<Point3<f64>> =
+        slaves.iter().map(|&s| positions.get(s).copied().unwrap_or_else(Point3::origin)).collect();
+    let (lo, hi) = crate::master::bounds(pts.iter());
+    let spread = |v: u64| {
+        // Spread the low 21 bits of v to every third bit.
+        let mut x = v & 0x1f_ffff;
+        x = (x | x << 32) & 0x1f_0000_0000_ffff;
+        x = (x | x << 16) & 0x1f_0000_ff00_00ff;
+        x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+        x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+        x = (x | x << 2) & 0x1249_2492_4924_9249;
+        x
+    };
+    let code = |p: &Point3<f64>| {
+        let mut c = 0u64;
+        for k in 0..3 {
+            let ext = hi[k] - lo[k];
+            let t = if ext > 0.0 && ext.is_finite() {
+                ((p[k] - lo[k]) / ext).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            c |= spread((t * 1_048_575.0) as u64) << k;
+        }
+        c
+    };
+    let mut order: Vec<u32> = (0..slaves.len() as u32).collect();
+    order.sort_by_key(|&k| code(&pts[k as usize]));
+    order
 }
 
 /// A slave node found outside the cavity before the first step.

@@ -32,10 +32,36 @@ pub struct BucketGrid {
     pts: Vec<Point3<f64>>,
 }
 
+/// Result of the 27-bucket block search ([`BucketGrid::block`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Block {
+    /// Bucket of the query (clamped).
+    pub c: [usize; 3],
+    /// Nearest item found in the block (id, distance²); `u32::MAX`, ∞ when empty.
+    pub best: (u32, f64),
+    /// Second-nearest distance² in the block.
+    pub next: f64,
+    /// Every item outside the block is at least this far from the query.
+    pub bound: f64,
+}
+
+/// Offers item `id` at squared distance `d2` to a running (nearest, second distance²)
+/// pair. Ties are broken towards the smaller id, so the result does not depend on the
+/// order in which items are visited.
+#[inline]
+pub fn consider(id: u32, d2: f64, best: &mut (u32, f64), next: &mut f64) {
+    if d2 < best.1 || (d2 == best.1 && id < best.0) {
+        *next = best.1;
+        *best = (id, d2);
+    } else if d2 < *next {
+        *next = d2;
+    }
+}
+
 /// Result of an exact nearest-item search.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Nearest {
-    /// Item id of the nearest item (first found on ties, in bucket scan order).
+    /// Item id of the nearest item (smallest id on exact ties).
     pub id: u32,
     /// Squared distance to it.
     pub d2: f64,
@@ -161,45 +187,41 @@ impl BucketGrid {
     /// than anything unvisited. A point outside the grid is clamped to the nearest bucket and
     /// the same certification applies, so it also gets the exact answer. With `second`, the
     /// search goes on until the second-nearest distance is exact too. `None` if the grid is
-    /// empty.
+    /// empty or `p` is not finite.
     pub fn nearest(&self, p: &Point3<f64>, second: bool) -> Option<Nearest> {
         if self.ids.is_empty() {
             return None;
         }
-        let c = self.cell_of(p);
-        let mut best = (u32::MAX, f64::INFINITY);
-        let mut next = f64::INFINITY;
-        let visit = |range: std::ops::Range<usize>, best: &mut (u32, f64), next: &mut f64| {
-            for (id, q) in self.ids[range.clone()].iter().zip(&self.pts[range]) {
-                let d2 = (q - p).norm_squared();
-                if d2 < best.1 {
-                    *next = best.1;
-                    *best = (*id, d2);
-                } else if d2 < *next {
-                    *next = d2;
-                }
-            }
-        };
-        // The paper's block: P's bucket and its 26 neighbours. Buckets are stored x-fastest,
-        // so each row of the block is one contiguous range.
-        let (x0, x1) = (c[0].saturating_sub(1), (c[0] + 1).min(self.dims[0] - 1));
-        for z in c[2].saturating_sub(1)..=(c[2] + 1).min(self.dims[2] - 1) {
-            for y in c[1].saturating_sub(1)..=(c[1] + 1).min(self.dims[1] - 1) {
-                visit(self.row(x0, x1, y, z), &mut best, &mut next);
-            }
+        self.nearest_from(p, self.block(p), second)
+    }
+
+    /// [`nearest`](Self::nearest) continued from an already computed block search.
+    pub fn nearest_from(&self, p: &Point3<f64>, block: Block, second: bool) -> Option<Nearest> {
+        if self.ids.is_empty() || !p.coords.iter().all(|x| x.is_finite()) {
+            return None;
         }
+        let Block { c, best, next, .. } = block;
+        let (mut best, mut next) = (best, next);
+        let visit = |range: std::ops::Range<usize>, best: &mut (u32, f64), next: &mut f64| {
+            self.scan(range, p, best, next)
+        };
         // Then whole shells only while nothing has been found.
         let mut r = 1;
         loop {
             let bound = self.outside_bound(p, c, r);
             let target = if second { next } else { best.1 };
-            if target <= bound * bound {
+            // Strict: an item exactly at the bound could win an id tie.
+            if target < bound * bound {
                 return Some(Nearest { id: best.0, d2: best.1, other_lb: next.sqrt().min(bound) });
             }
             if target.is_finite() {
                 break;
             }
             r += 1;
+            if r > self.dims.iter().copied().max().unwrap_or(0) {
+                // The block covers the grid: every item has been visited.
+                return Some(Nearest { id: best.0, d2: best.1, other_lb: next.sqrt() });
+            }
             self.for_shell(c, r, |range| visit(range, &mut best, &mut next));
         }
         // Certification: visit the buckets outside the block that intersect the ball of the
@@ -214,7 +236,7 @@ impl BucketGrid {
             for y in lo[1]..=hi[1] {
                 let dy = self.axis_gap(p, 1, y);
                 let rest = target(&best, next) - (dz * dz + dy * dy);
-                if rest <= 0.0 {
+                if rest < 0.0 {
                     continue;
                 }
                 let w = rest.sqrt();
@@ -237,6 +259,122 @@ impl BucketGrid {
         // Every item not visited is at least √target away.
         let lb = if second { next.sqrt() } else { best.1.sqrt() };
         Some(Nearest { id: best.0, d2: best.1, other_lb: lb })
+    }
+
+    /// The paper's block search: P's bucket and its 26 neighbours. Buckets are stored
+    /// x-fastest, so each row of the block is one contiguous range. Returns the nearest item
+    /// found (ties: smallest id), the second distance², and the bound below which the block
+    /// result is certified (distance from `p` to the unvisited buckets).
+    #[inline]
+    pub fn block(&self, p: &Point3<f64>) -> Block {
+        let c = self.cell_of(p);
+        let mut best = (u32::MAX, f64::INFINITY);
+        let mut next = f64::INFINITY;
+        let (x0, x1) = (c[0].saturating_sub(1), (c[0] + 1).min(self.dims[0] - 1));
+        for z in c[2].saturating_sub(1)..=(c[2] + 1).min(self.dims[2] - 1) {
+            for y in c[1].saturating_sub(1)..=(c[1] + 1).min(self.dims[1] - 1) {
+                self.scan(self.row(x0, x1, y, z), p, &mut best, &mut next);
+            }
+        }
+        Block { c, best, next, bound: self.outside_bound(p, c, 1) }
+    }
+
+    /// Updates the nearest (ties: smallest id) and second-nearest distance² with the items
+    /// of `range`.
+    #[inline]
+    fn scan(
+        &self,
+        range: std::ops::Range<usize>,
+        p: &Point3<f64>,
+        best: &mut (u32, f64),
+        next: &mut f64,
+    ) {
+        for (id, q) in self.ids[range.clone()].iter().zip(&self.pts[range]) {
+            consider(*id, (q - p).norm_squared(), best, next);
+        }
+    }
+
+    /// For every bucket, an item near its centre: the propagated nearest seed of a two-pass
+    /// sweep over the 26-neighbourhood (a discrete Voronoi diagram; approximate, used only as
+    /// a starting point that is then certified). `u32::MAX` for an empty grid.
+    pub fn seeds(&self) -> Vec<u32> {
+        let n = self.dims[0] * self.dims[1] * self.dims[2];
+        let mut seed = vec![(u32::MAX, f64::INFINITY); n];
+        let pt_of = |id_slot: usize| self.pts[id_slot];
+        // Slot of each item id in bucket order, to look its point up.
+        let max_id = self.ids.iter().copied().max().map_or(0, |m| m as usize + 1);
+        let mut slot = vec![usize::MAX; max_id];
+        for (k, &id) in self.ids.iter().enumerate() {
+            slot[id as usize] = k;
+        }
+        let centre = |x: usize, y: usize, z: usize| {
+            Point3::new(
+                self.origin.x + (x as f64 + 0.5) * self.h.x,
+                self.origin.y + (y as f64 + 0.5) * self.h.y,
+                self.origin.z + (z as f64 + 0.5) * self.h.z,
+            )
+        };
+        for z in 0..self.dims[2] {
+            for y in 0..self.dims[1] {
+                for x in 0..self.dims[0] {
+                    let f = self.flat([x, y, z]);
+                    let cc = centre(x, y, z);
+                    let mut best = (u32::MAX, f64::INFINITY);
+                    let mut next = f64::INFINITY;
+                    self.scan(self.row(x, x, y, z), &cc, &mut best, &mut next);
+                    seed[f] = best;
+                }
+            }
+        }
+        if self.ids.is_empty() {
+            return vec![u32::MAX; n];
+        }
+        let dims = [self.dims[0] as isize, self.dims[1] as isize, self.dims[2] as isize];
+        for pass in 0..2 {
+            let order: Box<dyn Iterator<Item = usize>> =
+                if pass == 0 { Box::new(0..n) } else { Box::new((0..n).rev()) };
+            for f in order {
+                let (x, y, z) = (
+                    f % self.dims[0],
+                    (f / self.dims[0]) % self.dims[1],
+                    f / (self.dims[0] * self.dims[1]),
+                );
+                let cc = centre(x, y, z);
+                let mut best = seed[f];
+                for dz in -1isize..=1 {
+                    for dy in -1isize..=1 {
+                        for dx in -1isize..=1 {
+                            let (nx, ny, nz) = (x as isize + dx, y as isize + dy, z as isize + dz);
+                            if nx < 0
+                                || ny < 0
+                                || nz < 0
+                                || nx >= dims[0]
+                                || ny >= dims[1]
+                                || nz >= dims[2]
+                            {
+                                continue;
+                            }
+                            let g = self.flat([nx as usize, ny as usize, nz as usize]);
+                            let id = seed[g].0;
+                            if id != u32::MAX && id != best.0 {
+                                let d2 = (pt_of(slot[id as usize]) - cc).norm_squared();
+                                if d2 < best.1 {
+                                    best = (id, d2);
+                                }
+                            }
+                        }
+                    }
+                }
+                seed[f] = best;
+            }
+        }
+        seed.into_iter().map(|s| s.0).collect()
+    }
+
+    /// Flat index of the bucket containing `p` (clamped).
+    #[inline]
+    pub fn flat_of(&self, p: &Point3<f64>) -> usize {
+        self.flat(self.cell_of(p))
     }
 
     /// Item range of the buckets `x0..=x1` of row (y, z).

@@ -56,7 +56,8 @@ impl ParryContact {
 
 impl ClosestPoint for ParryContact {
     fn closest(&mut self, _slave: usize, p: &Point3<f64>) -> Option<Projection> {
-        Some(self.project(p))
+        // A non-finite position (a diverged step) has no closest point: leave it alone.
+        p.coords.iter().all(|x| x.is_finite()).then(|| self.project(p))
     }
 
     fn name(&self) -> &'static str {

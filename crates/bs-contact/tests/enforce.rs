@@ -109,7 +109,7 @@ fn coherent_matches_paper_every_step_of_a_random_walk() {
         .unwrap();
         let (mut pa, mut pb) = (start.clone(), start.clone());
         let mut rng = Rng::new(seed + 100);
-        for step in 0..150 {
+        for step in 0..400 {
             // Tiny DR-like steps most of the time, an occasional jump.
             let scale = if step % 37 == 0 { 0.5 * d } else { 0.02 * d };
             for &s in &slaves {
@@ -339,4 +339,26 @@ fn algorithms_by_name() {
     }
     let e = "fast".parse::<Algorithm>().unwrap_err();
     assert!(e.to_string().contains("paper, coherent, parry, brute-force, none"), "{e}");
+}
+
+/// A diverged solver step (NaN or infinite coordinates) must not hang or move anything:
+/// such slaves are left as they are, the others are still corrected.
+#[test]
+fn non_finite_positions_are_left_alone() {
+    let skull = cube();
+    let params = PaperParams { max_step_penetration: Some(0.3), ..Default::default() };
+    let start = vec![
+        Point3::new(f64::NAN, 0.5, 0.5),
+        Point3::new(f64::INFINITY, 0.5, 0.5),
+        Point3::new(0.5, 0.5, 1.1),
+    ];
+    for name in ["paper", "coherent", "parry", "brute-force"] {
+        let h = bs_contact::Handler::new(name.parse().unwrap(), &skull, params).unwrap();
+        let mut e = Enforcer::new(h, vec![0, 1, 2], 3).unwrap();
+        let mut p = start.clone();
+        let r = e.enforce(&mut p);
+        assert_eq!(r.nodes_in_contact, 1, "{name}");
+        assert!(p[0].x.is_nan() && p[1].x == f64::INFINITY, "{name}");
+        assert!((p[2] - Point3::new(0.5, 0.5, 1.0)).norm() < 1e-12, "{name}");
+    }
 }

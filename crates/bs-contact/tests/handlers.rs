@@ -21,24 +21,32 @@ fn handlers_agree_with_brute_force_on_random_surfaces() {
         let m = Arc::new(MasterSurface::new(&s).unwrap());
         let brute = BruteForce::from_master(m.clone());
         let parry = ParryContact::from_master(&m).unwrap();
-        for d_factor in [0.25, 0.5] {
+        let mut rng = Rng::new(42);
+        let queries: Vec<_> = (0..3000)
+            .map(|_| {
+                let q = query_near(&m, &mut rng, 2.0 * m.max_edge);
+                (q, brute.project(&q))
+            })
+            .collect();
+        for (q, b) in &queries {
+            let pa = parry.project(q);
+            assert!(
+                (pa.distance - b.distance).abs() <= tol(b.distance, m.size)
+                    && pa.outside == b.outside,
+                "{name}: parry {pa:?} vs brute {b:?} at {q:?}"
+            );
+        }
+        // d from a quarter edge (the default) to two edges (long lists).
+        for d_factor in [0.25, 1.0, 2.0] {
             let d = d_factor * m.max_edge;
             let params = PaperParams { max_step_penetration: Some(d), ..Default::default() };
             let paper = PaperContact::from_master(m.clone(), params).unwrap();
             let mut coherent = CoherentContact::from_master(m.clone(), params).unwrap();
-            let mut rng = Rng::new(42);
             let (mut within, mut outside_within) = (0, 0);
-            for i in 0..700 {
-                let q = query_near(&m, &mut rng, 2.0 * m.max_edge);
-                let b = brute.project(&q);
+            for (i, (q, b)) in queries.iter().enumerate() {
                 let t = tol(b.distance, m.size);
-                let pa = parry.project(&q);
-                assert!(
-                    (pa.distance - b.distance).abs() <= t && pa.outside == b.outside,
-                    "{name}: parry {pa:?} vs brute {b:?} at {q:?}"
-                );
-                let p = paper.project(&q);
-                let c = coherent.closest(i % 5, &q);
+                let p = paper.project(q);
+                let c = coherent.closest(i % 5, q);
                 if b.distance.abs() <= d {
                     within += 1;
                     outside_within += b.outside as usize;
@@ -122,18 +130,19 @@ fn fig2c_face_not_connected_to_closest_node_needs_additional_lists() {
     );
 }
 
-/// Regression: the edge rules as printed (`[OM] < d`, and edges of triangles containing C
-/// skipped) miss the closest edge of some outside slaves within d; the rules as the paper
-/// states their intent (AB within d of R) find them all.
+/// Regression: the §3.2 rules as printed (edges: `[OM] < d` and edges of triangles
+/// containing C skipped; faces: the circumsphere discard and seven sample points) miss the
+/// closest edge or face of some slaves within d; the rules as the paper states their purpose
+/// (the feature is within d of the region closer to C) find them all.
 #[test]
-fn literal_edge_rules_miss_closest_edges() {
+fn literal_list_rules_miss_closest_features() {
     let s = bs_contact::shapes::random_convex(60, 5);
     let m = Arc::new(MasterSurface::new(&s).unwrap());
     let brute = BruteForce::from_master(m.clone());
     let ours = PaperContact::from_master(m.clone(), PaperParams::default()).unwrap();
     let literal = PaperContact::from_master(
         m.clone(),
-        PaperParams { literal_edge_test: true, ..Default::default() },
+        PaperParams { literal_list_tests: true, ..Default::default() },
     )
     .unwrap();
     let d = ours.max_step_penetration();
@@ -157,7 +166,7 @@ fn literal_edge_rules_miss_closest_edges() {
             literal_misses += 1;
         }
     }
-    assert!(literal_misses > 0, "expected the printed edge rules to miss some closest edges");
+    assert!(literal_misses > 0, "expected the printed rules to miss some closest features");
 }
 
 /// A node far outside the grid of master nodes (beyond the skull's bounding box) still gets
@@ -182,5 +191,29 @@ fn points_outside_the_bucket_grid_get_exact_answers() {
         let b = brute.project(&q);
         let p = paper.project(&q).unwrap();
         assert!((p.distance - b.distance).abs() <= tol(b.distance, m.size) && p.outside);
+    }
+}
+
+/// The closest master node (27-bucket block, certified by the node neighbourhoods, seeds or
+/// a widened search) is the exact one for points near, deep inside and far outside the
+/// skull: same node as an exhaustive scan with ties to the smallest index.
+#[test]
+fn closest_node_is_exact_everywhere() {
+    for (name, s) in surfaces() {
+        let m = Arc::new(MasterSurface::new(&s).unwrap());
+        let paper = PaperContact::from_master(m.clone(), PaperParams::default()).unwrap();
+        let mut rng = Rng::new(17);
+        for i in 0..600 {
+            let q = match i % 3 {
+                0 => query_near(&m, &mut rng, m.max_edge),
+                1 => common::surface_point(&m, &mut rng) * rng.range(0.0, 1.0), // towards the centre
+                _ => bs_mesh::Point3::from(rng.direction() * rng.range(0.0, 4.0)),
+            };
+            let want = (0..m.vertices.len() as u32)
+                .map(|v| ((m.vertices[v as usize] - q).norm_squared(), v))
+                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
+                .unwrap();
+            assert_eq!(paper.closest_node(&q), Some(want.1), "{name}: query {q:?}");
+        }
     }
 }

@@ -6,7 +6,9 @@ mod common;
 
 use bs_contact::geometry::{TriRegion, closest_point_triangle, corner_angle};
 use bs_contact::grid::BucketGrid;
-use bs_contact::paper::{edge_needs_check, edge_needs_check_literal, face_needs_check};
+use bs_contact::paper::{
+    edge_needs_check, edge_needs_check_literal, face_needs_check, face_needs_check_literal,
+};
 use bs_contact::shapes::{self, Rng};
 use bs_contact::{MasterSurface, NodeNormalRule, PaperContact, PaperParams};
 use bs_mesh::{Point3, Vector3};
@@ -149,6 +151,30 @@ proptest! {
         };
         if mids.iter().any(in_r) && (c - r).norm() <= 2.0 * rho {
             prop_assert!(accepted0);
+        }
+    }
+
+    /// The face test as implemented accepts every face for which a random witness within d
+    /// of the face interior (either side) is closer to C than to the face's vertices, and
+    /// everything the printed test accepts.
+    #[test]
+    fn face_test_is_sound(a in pt(), b in pt(), t3 in pt(), c in pt(), d in 0.0..1.0f64, seed in any::<u64>()) {
+        let area = (b - a).cross(&(t3 - a)).norm();
+        prop_assume!(area > 1e-2);
+        let n = (b - a).cross(&(t3 - a)).normalize();
+        let ours = face_needs_check(&c, [&a, &b, &t3], &n, d);
+        if face_needs_check_literal(&c, [&a, &b, &t3], &n, d) {
+            prop_assert!(ours);
+        }
+        let mut rng = Rng::new(seed);
+        for _ in 0..300 {
+            let (mut u, mut v) = (rng.uniform(), rng.uniform());
+            if u + v > 1.0 { u = 1.0 - u; v = 1.0 - v; }
+            let y = a + (b - a) * u + (t3 - a) * v + n * rng.range(-d, d);
+            let yc = (y - c).norm();
+            if yc < (y - a).norm() && yc < (y - b).norm() && yc < (y - t3).norm() {
+                prop_assert!(ours, "witness {:?} within d of the face is closer to C", y);
+            }
         }
     }
 
