@@ -94,11 +94,7 @@ pub fn compose(p: &Prepared) -> Result<Composed, CheckError> {
             result.map_err(|e| CheckError(format!("node {}: {e}", p.mesh.node_ids[n])))?;
         }
     }
-    let load_scale = if loads.max_prescribed() > 0.0 {
-        loads.max_prescribed()
-    } else {
-        p.mesh.bounding_box().map_or(1.0, |(lo, hi)| (hi - lo).norm()).max(f64::MIN_POSITIVE)
-    };
+    let load_scale = bs_dr::load_scale(&model, &loads);
 
     let slaves: Vec<usize> = p
         .mesh

@@ -125,14 +125,7 @@ impl DynamicRelaxation {
     fn omega_guess(model: &Model, masses: &[f64]) -> f64 {
         let (vol, mu_vol) = model.volume_and_shear();
         let mass: f64 = masses.iter().sum();
-        let pts = model.reference();
-        let mut lo = pts[0];
-        let mut hi = pts[0];
-        for p in pts {
-            lo = lo.inf(p);
-            hi = hi.sup(p);
-        }
-        let diag = (hi - lo).norm();
+        let diag = model.diagonal();
         let c = (mu_vol / vol / (mass / vol)).sqrt();
         std::f64::consts::FRAC_PI_2 * c / diag
     }

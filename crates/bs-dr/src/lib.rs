@@ -71,7 +71,7 @@ pub use loads::{LoadError, Loads, ramp};
 pub use model::{Model, ModelError, ModelOptions, Solid, TetFormulation};
 pub use newton::{Newton, NewtonParams};
 pub use post::ElementMeasures;
-pub use solver::{Progress, Report, Solution, SolveError, Solver};
+pub use solver::{Progress, Report, Solution, SolveError, Solver, load_scale};
 
 #[cfg(test)]
 mod tests;

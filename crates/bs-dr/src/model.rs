@@ -521,6 +521,14 @@ impl Model {
         })
     }
 
+    /// Diagonal of the reference bounding box (0 without nodes).
+    pub fn diagonal(&self) -> f64 {
+        let pts = &self.reference;
+        let Some(&first) = pts.first() else { return 0.0 };
+        let (lo, hi) = pts.iter().fold((first, first), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
+        (hi - lo).norm()
+    }
+
     /// Number of nodes.
     pub fn node_count(&self) -> usize {
         self.reference.len()

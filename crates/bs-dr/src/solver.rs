@@ -207,18 +207,9 @@ pub(crate) fn check_param(
 }
 
 /// Length scale of a problem: the largest prescribed displacement component, or the
-/// bounding-box diagonal when nothing moves.
-pub(crate) fn load_scale(model: &Model, loads: &Loads) -> f64 {
+/// bounding-box diagonal when nothing moves. Solver tolerances are relative to it; callers
+/// that think in absolute lengths divide by it.
+pub fn load_scale(model: &Model, loads: &Loads) -> f64 {
     let m = loads.max_prescribed();
-    if m > 0.0 {
-        return m;
-    }
-    let pts = model.reference();
-    let mut lo = pts[0];
-    let mut hi = pts[0];
-    for p in pts {
-        lo = lo.inf(p);
-        hi = hi.sup(p);
-    }
-    (hi - lo).norm().max(f64::MIN_POSITIVE)
+    if m > 0.0 { m } else { model.diagonal().max(f64::MIN_POSITIVE) }
 }

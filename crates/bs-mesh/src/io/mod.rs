@@ -309,6 +309,19 @@ pub fn write_atomic(
     Ok(())
 }
 
+/// Writers refuse a surface whose triangles point past its vertices (an `InvalidInput`
+/// error naming the triangle) instead of writing a file no reader accepts.
+pub(crate) fn require_indices_in_range(s: &TriSurface) -> std::io::Result<()> {
+    let nv = s.vertices.len();
+    match s.triangles.iter().position(|t| t.iter().any(|&i| i >= nv)) {
+        Some(t) => Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            format!("triangle {t} refers to a vertex beyond the {nv} vertices"),
+        )),
+        None => Ok(()),
+    }
+}
+
 /// Line-oriented text cursor shared by the text parsers: yields `(line_number, line)` with
 /// 1-based numbers and keeps the file name for errors.
 #[derive(Debug)]

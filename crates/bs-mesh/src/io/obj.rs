@@ -83,13 +83,8 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<TriSurface, ParseError> {
 
 /// Writes `v` and `f` lines (1-based indices, round-trip-exact coordinates).
 pub fn write(w: &mut dyn Write, s: &TriSurface) -> io::Result<()> {
+    super::require_indices_in_range(s)?;
     let nv = s.vertices.len();
-    if let Some(t) = s.triangles.iter().position(|t| t.iter().any(|&i| i >= nv)) {
-        return Err(io::Error::new(
-            io::ErrorKind::InvalidInput,
-            format!("triangle {t} refers to a vertex beyond the {nv} vertices"),
-        ));
-    }
     writeln!(w, "# written by brainshift: {} vertices, {} triangles", nv, s.triangles.len())?;
     for p in &s.vertices {
         writeln!(w, "v {:?} {:?} {:?}", p.x, p.y, p.z)?;

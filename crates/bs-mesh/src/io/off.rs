@@ -97,13 +97,8 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<TriSurface, ParseError> {
 
 /// Writes an OFF file (round-trip-exact coordinates, triangles as `3 a b c`).
 pub fn write(w: &mut dyn Write, s: &TriSurface) -> io::Result<()> {
+    super::require_indices_in_range(s)?;
     let nv = s.vertices.len();
-    if let Some(t) = s.triangles.iter().position(|t| t.iter().any(|&i| i >= nv)) {
-        return Err(io::Error::new(
-            io::ErrorKind::InvalidInput,
-            format!("triangle {t} refers to a vertex beyond the {nv} vertices"),
-        ));
-    }
     writeln!(w, "OFF")?;
     writeln!(w, "{} {} 0", nv, s.triangles.len())?;
     for p in &s.vertices {

@@ -209,24 +209,13 @@ fn unit_normal(s: &TriSurface, t: &[usize; 3]) -> Vector3<f64> {
     if len > 0.0 && len.is_finite() { n / len } else { Vector3::zeros() }
 }
 
-fn check(s: &TriSurface) -> io::Result<()> {
-    let nv = s.vertices.len();
-    match s.triangles.iter().position(|t| t.iter().any(|&i| i >= nv)) {
-        Some(t) => Err(io::Error::new(
-            io::ErrorKind::InvalidInput,
-            format!("triangle {t} refers to a vertex beyond the {nv} vertices"),
-        )),
-        None => Ok(()),
-    }
-}
-
 /// Writes a binary STL (coordinates rounded to `f32`, which is all the format holds; normals
 /// computed from the vertices).
 ///
 /// Fails with [`io::ErrorKind::InvalidInput`] when a coordinate is beyond the `f32` range
 /// (it would become infinite).
 pub fn write_binary(w: &mut dyn Write, s: &TriSurface) -> io::Result<()> {
-    check(s)?;
+    super::require_indices_in_range(s)?;
     for t in &s.triangles {
         for &v in t {
             let p = s.vertices[v];
@@ -273,7 +262,7 @@ pub fn write_binary(w: &mut dyn Write, s: &TriSurface) -> io::Result<()> {
 
 /// Writes an ASCII STL with round-trip-exact `f64` coordinates.
 pub fn write_ascii(w: &mut dyn Write, s: &TriSurface) -> io::Result<()> {
-    check(s)?;
+    super::require_indices_in_range(s)?;
     writeln!(w, "solid brainshift")?;
     for t in &s.triangles {
         let n = unit_normal(s, t);
