@@ -181,17 +181,8 @@ pub struct Model {
 /// Gauss points of the 2×2×2 rule (exact for the mean gradients of a trilinear hex).
 const G: f64 = 0.577_350_269_189_625_8;
 
-/// Natural coordinates of the hex nodes (Abaqus/VTK order).
-pub(crate) const HEX_XI: [[f64; 3]; 8] = [
-    [-1.0, -1.0, -1.0],
-    [1.0, -1.0, -1.0],
-    [1.0, 1.0, -1.0],
-    [-1.0, 1.0, -1.0],
-    [-1.0, -1.0, 1.0],
-    [1.0, -1.0, 1.0],
-    [1.0, 1.0, 1.0],
-    [-1.0, 1.0, 1.0],
-];
+/// Natural coordinates of the hex nodes (Abaqus/VTK order), shared with bs-mesh.
+pub(crate) use bs_mesh::HEX_REFERENCE as HEX_XI;
 
 fn tet_gradients(x: &[Point3<f64>; 4]) -> (f64, [[f64; 3]; 4]) {
     let e1 = x[1] - x[0];

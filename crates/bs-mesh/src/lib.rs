@@ -24,7 +24,7 @@ mod surface;
 mod validate;
 
 pub use boundary::BoundarySurface;
-pub use mesh::{Element, ElementKind, Mesh};
+pub use mesh::{Element, ElementKind, HEX_REFERENCE, Mesh};
 pub use nalgebra::{Point3, Vector3};
 pub use surface::{Edge, SurfaceCheck, SurfaceError, SurfaceTopology, TriSurface};
 pub use validate::{MeshError, ValidationReport};

@@ -201,8 +201,9 @@ pub(crate) fn element_volume(nodes: &[Point3<f64>], e: &Element) -> f64 {
     }
 }
 
-/// Reference coordinates of the 8 hex nodes.
-pub(crate) const HEX_REF: [[f64; 3]; 8] = [
+/// Natural (reference) coordinates of the 8 hex nodes in Abaqus/VTK order, the one table
+/// every hexahedron computation in the workspace uses.
+pub const HEX_REFERENCE: [[f64; 3]; 8] = [
     [-1.0, -1.0, -1.0],
     [1.0, -1.0, -1.0],
     [1.0, 1.0, -1.0],
@@ -212,6 +213,8 @@ pub(crate) const HEX_REF: [[f64; 3]; 8] = [
     [1.0, 1.0, 1.0],
     [-1.0, 1.0, 1.0],
 ];
+
+pub(crate) use HEX_REFERENCE as HEX_REF;
 
 /// Determinant of the isoparametric Jacobian of a hex at reference point (xi, eta, zeta).
 pub(crate) fn hex_jacobian_det(
