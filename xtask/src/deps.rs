@@ -15,7 +15,7 @@ pub const ALLOWED: &[(&str, &[&str])] = &[
     ("bs-contact", &["bs-mesh"]),
     ("bs-dr", &["bs-mesh", "bs-material"]),
     ("bs-cli", &["bs-mesh", "bs-material", "bs-dr", "bs-contact"]),
-    ("xtask", &["bs-mesh", "bs-material", "bs-dr", "bs-contact"]),
+    ("xtask", &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-cli"]),
 ];
 
 /// Why an edge is forbidden, for the error message.

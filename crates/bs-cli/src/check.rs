@@ -12,7 +12,7 @@ use bs_mesh::{ElementKind, Mesh, TriSurface};
 use crate::scene::{ElementChoice, Scene};
 
 /// A scene with its files read and its names resolved.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct Prepared {
     /// The parsed scene.
     pub scene: Scene,

@@ -63,8 +63,32 @@ pub fn material(m: &crate::scene::Material) -> Result<Material, String> {
     law.map_err(|e| e.to_string())
 }
 
+/// Settings of the composition that scene files do not expose: studies vary them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ComposeOptions {
+    /// Hourglass stiffness coefficient of H8 elements (bs-dr's default 0.1; 0 switches the
+    /// control off).
+    pub hourglass: f64,
+    /// Parameters of the paper's contact handlers (additional lists on by default).
+    pub contact: PaperParams,
+}
+
+impl Default for ComposeOptions {
+    fn default() -> Self {
+        ComposeOptions {
+            hourglass: ModelOptions::default().hourglass,
+            contact: PaperParams::default(),
+        }
+    }
+}
+
 /// Builds model, loads and contact from a checked scene.
 pub fn compose(p: &Prepared) -> Result<Composed, CheckError> {
+    compose_with(p, &ComposeOptions::default())
+}
+
+/// [`compose`] with explicit [`ComposeOptions`].
+pub fn compose_with(p: &Prepared, opts: &ComposeOptions) -> Result<Composed, CheckError> {
     let solids = p
         .scene
         .regions
@@ -79,7 +103,7 @@ pub fn compose(p: &Prepared) -> Result<Composed, CheckError> {
         ElementChoice::T4 => TetFormulation::T4,
         ElementChoice::T4anp | ElementChoice::H8 => TetFormulation::T4Anp,
     };
-    let options = ModelOptions { tet, ..ModelOptions::default() };
+    let options = ModelOptions { tet, hourglass: opts.hourglass };
     let model = Model::new(&p.mesh, &solids, &p.region_of_element, options)
         .map_err(|e| CheckError(format!("{}: {e}", p.scene.mesh.file.display())))?;
 
@@ -108,7 +132,7 @@ pub fn compose(p: &Prepared) -> Result<Composed, CheckError> {
         (Some(skull), Some(c)) => {
             let master = MasterSurface::new(skull)
                 .map_err(|e| CheckError(format!("{}: {e}", c.skull.display())))?;
-            let handler = Handler::new(algorithm(c.algorithm), skull, PaperParams::default())
+            let handler = Handler::new(algorithm(c.algorithm), skull, opts.contact)
                 .map_err(|e| CheckError(format!("{}: {e}", c.skull.display())))?;
             let enforcer = Enforcer::new(handler, slaves.clone(), model.node_count())
                 .map_err(|e| CheckError(e.to_string()))?;

@@ -1,11 +1,6 @@
 //! `brainshift`: brain shift computation for image-guided neurosurgery.
 
-mod check;
-mod compose;
-mod gap;
-mod inspect;
-mod run;
-mod scene;
+use bs_cli::{check, gap, inspect, run, scene};
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -93,20 +88,6 @@ enum GapAlgorithm {
     Coherent,
     Parry,
     BruteForce,
-}
-
-/// Writes `text` to standard output. A closed pipe (`brainshift inspect x | head`) is not an
-/// error worth a message: the reader has what it wanted, so the program ends quietly.
-pub(crate) fn emit(text: &str) {
-    use std::io::Write;
-    let mut out = std::io::stdout().lock();
-    if let Err(e) = out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
-        if e.kind() == std::io::ErrorKind::BrokenPipe {
-            std::process::exit(0);
-        }
-        eprintln!("error: cannot write to standard output: {e}");
-        std::process::exit(1);
-    }
 }
 
 fn main() -> ExitCode {

@@ -6,13 +6,14 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
-use bs_dr::{DrParams, DynamicRelaxation, Newton, NewtonParams, Progress, Solver};
+use bs_dr::{DrParams, Progress};
 use bs_mesh::io::{Field, Fields, write_atomic};
 use serde::Serialize;
 
 use crate::check::{CheckError, Prepared};
 use crate::compose::{Composed, compose};
 use crate::scene::SolverKind;
+use crate::study::{SolveSettings, final_contact, solve_composed};
 
 /// Options of `run`.
 #[derive(Debug)]
@@ -171,36 +172,11 @@ fn solve(
     c: &mut Composed,
     quiet: bool,
 ) -> Result<Solved, Box<dyn std::error::Error>> {
-    let tol = p.scene.solver.tolerance;
-    let relative = tol / c.load_scale;
-    let mut reporter = Reporter::new(quiet, tol);
-    let mut max_penetration = 0.0f64;
-    let mut observer = |pr: &Progress| {
-        max_penetration = max_penetration.max(pr.contact.max_penetration);
-        reporter.update(pr);
-    };
-    let mut none = bs_dr::NoContact;
-    let contact: &mut dyn bs_dr::Contact = match &mut c.contact {
-        Some(sc) => sc,
-        None => &mut none,
-    };
-    let result =
-        match p.scene.solver.kind {
-            SolverKind::Dr => {
-                DynamicRelaxation::new(DrParams { tolerance: relative, ..DrParams::default() })
-                    .solve(&c.model, &c.loads, contact, &mut observer)
-            }
-            SolverKind::Newton => {
-                Newton::new(NewtonParams { tolerance: relative, ..NewtonParams::default() }).solve(
-                    &c.model,
-                    &c.loads,
-                    contact,
-                    &mut observer,
-                )
-            }
-        };
+    let settings = SolveSettings::of(p);
+    let mut reporter = Reporter::new(quiet, settings.tolerance);
+    let result = solve_composed(c, &settings, &mut |pr| reporter.update(pr));
     reporter.finish();
-    let solution = result.map_err(|e| format!("the solver stopped: {e}"))?;
+    let (solution, max_penetration) = result.map_err(|e| format!("the solver stopped: {e}"))?;
     Ok(Solved { solution, max_penetration })
 }
 
@@ -217,21 +193,7 @@ fn write_outputs(
     let n = p.mesh.nodes.len();
     let tol = p.scene.solver.tolerance;
 
-    // Contact state of the result: signed distance of every slave at its final position.
-    let mut in_contact = vec![0.0; n];
-    let mut max_penetration_after = 0.0f64;
-    if let Some(master) = &c.master {
-        let mut brute = bs_contact::BruteForce::from_master(std::sync::Arc::new(master.clone()));
-        let points: Vec<_> = c.slaves.iter().map(|&i| p.mesh.nodes[i] + u[i]).collect();
-        for (row, &i) in bs_contact::gap(&mut brute, master, &points).iter().zip(&c.slaves) {
-            if row.signed_distance <= tol {
-                in_contact[i] = 1.0;
-            }
-            if row.outside {
-                max_penetration_after = max_penetration_after.max(-row.signed_distance);
-            }
-        }
-    }
+    let (in_contact, max_penetration_after) = final_contact(p, c, u, tol);
 
     std::fs::create_dir_all(&opts.out)
         .map_err(|e| format!("cannot create the output folder {}: {e}", opts.out.display()))?;

@@ -1,0 +1,306 @@
+//! One scene solved with variations: element technology, solver, tolerance, contact handler,
+//! time-step fraction, hourglass control, Poisson's ratio, load. This is what
+//! `cargo xtask validate`, `chart` and `stability` measure, and what `run` itself uses to
+//! solve, so a study measures exactly the code path of `brainshift run`.
+
+use std::time::Instant;
+
+use bs_contact::PaperParams;
+use bs_dr::{
+    DrParams, DynamicRelaxation, Newton, NewtonParams, Progress, Solution, SolveError, Solver,
+};
+use nalgebra::Vector3;
+
+use crate::check::Prepared;
+use crate::compose::{ComposeOptions, Composed, compose_with};
+use crate::scene::{Algorithm, ElementChoice, SolverKind};
+
+/// How a solve is driven: the scene's `[solver]` table plus the step fraction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolveSettings {
+    /// DR or Newton.
+    pub kind: SolverKind,
+    /// Error-estimate tolerance in mesh length units.
+    pub tolerance: f64,
+    /// DR time step as a fraction of the critical step (bs-dr's default 0.8).
+    pub step_fraction: f64,
+    /// DR step budget (bs-dr's default when `None`).
+    pub max_steps: Option<usize>,
+}
+
+impl SolveSettings {
+    /// The settings a scene asks for.
+    pub fn of(p: &Prepared) -> Self {
+        SolveSettings {
+            kind: p.scene.solver.kind,
+            tolerance: p.scene.solver.tolerance,
+            step_fraction: DrParams::default().step_fraction,
+            max_steps: None,
+        }
+    }
+}
+
+/// Solves a composed scene, returning the solution and the largest penetration any slave
+/// had before it was corrected (over all steps).
+pub fn solve_composed(
+    c: &mut Composed,
+    s: &SolveSettings,
+    observer: &mut dyn FnMut(&Progress),
+) -> Result<(Solution, f64), SolveError> {
+    let relative = s.tolerance / c.load_scale;
+    let mut max_penetration = 0.0f64;
+    let mut observe = |pr: &Progress| {
+        max_penetration = max_penetration.max(pr.contact.max_penetration);
+        observer(pr);
+    };
+    let mut none = bs_dr::NoContact;
+    let contact: &mut dyn bs_dr::Contact = match &mut c.contact {
+        Some(sc) => sc,
+        None => &mut none,
+    };
+    let solution = match s.kind {
+        SolverKind::Dr => {
+            let defaults = DrParams::default();
+            DynamicRelaxation::new(DrParams {
+                tolerance: relative,
+                step_fraction: s.step_fraction,
+                max_steps: s.max_steps.unwrap_or(defaults.max_steps),
+                ..defaults
+            })
+            .solve(&c.model, &c.loads, contact, &mut observe)
+        }
+        SolverKind::Newton => {
+            Newton::new(NewtonParams { tolerance: relative, ..NewtonParams::default() }).solve(
+                &c.model,
+                &c.loads,
+                contact,
+                &mut observe,
+            )
+        }
+    }?;
+    Ok((solution, max_penetration))
+}
+
+/// Contact state of a result: per node 1 if the node is a slave within `tol` of the skull
+/// (0 otherwise), and the largest distance of any slave outside the skull. Exact (brute
+/// force): it runs once per solve.
+pub fn final_contact(p: &Prepared, c: &Composed, u: &[Vector3<f64>], tol: f64) -> (Vec<f64>, f64) {
+    let mut in_contact = vec![0.0; p.mesh.nodes.len()];
+    let mut max_penetration_after = 0.0f64;
+    if let Some(master) = &c.master {
+        let mut brute = bs_contact::BruteForce::from_master(std::sync::Arc::new(master.clone()));
+        let points: Vec<_> = c.slaves.iter().map(|&i| p.mesh.nodes[i] + u[i]).collect();
+        for (row, &i) in bs_contact::gap(&mut brute, master, &points).iter().zip(&c.slaves) {
+            if row.signed_distance <= tol {
+                in_contact[i] = 1.0;
+            }
+            if row.outside {
+                max_penetration_after = max_penetration_after.max(-row.signed_distance);
+            }
+        }
+    }
+    (in_contact, max_penetration_after)
+}
+
+/// The contact of a variant.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ContactChoice {
+    /// No skull.
+    Off,
+    /// The scene's skull with this handler.
+    Handler(Algorithm),
+}
+
+/// What to change in a scene; `None` keeps the scene's own setting.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Variant {
+    /// Element technology (H8 only for hexahedral meshes, T4/T4ANP only for tetrahedral).
+    pub element: Option<ElementChoice>,
+    /// Solver kind.
+    pub solver: Option<SolverKind>,
+    /// Error-estimate tolerance, mesh length units.
+    pub tolerance: Option<f64>,
+    /// Contact handler, or no contact.
+    pub contact: Option<ContactChoice>,
+    /// DR time step as a fraction of the critical step.
+    pub step_fraction: Option<f64>,
+    /// H8 hourglass coefficient (0 = no control).
+    pub hourglass: Option<f64>,
+    /// Poisson's ratio of every region given by (E, ν) (E kept).
+    pub poisson_ratio: Option<f64>,
+    /// Factor on every prescribed (non-zero) displacement.
+    pub load_factor: Option<f64>,
+    /// The paper's §3.2 additional lists on or off.
+    pub additional_lists: Option<bool>,
+    /// DR step budget.
+    pub max_steps: Option<usize>,
+}
+
+/// Why a variant produced no result.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Failure {
+    /// The variant does not apply to the scene, or composing it failed.
+    Setup(String),
+    /// The solver stopped with a typed error.
+    Solve(SolveError),
+}
+
+impl std::fmt::Display for Failure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Failure::Setup(e) => write!(f, "setup: {e}"),
+            Failure::Solve(e) => write!(f, "the solver stopped: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for Failure {}
+
+/// A solved variant.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Outcome {
+    /// Nodal displacements, mesh node order.
+    pub displacements: Vec<Vector3<f64>>,
+    /// DR steps or Newton iterations.
+    pub steps: usize,
+    /// Wall time of model and contact setup (seconds).
+    pub setup_seconds: f64,
+    /// Wall time of the solve (seconds).
+    pub solve_seconds: f64,
+    /// Part of the solve spent in contact enforcement (seconds).
+    pub contact_seconds: f64,
+    /// Final error estimate, mesh length units.
+    pub error_estimate: f64,
+    /// Largest penetration before correction over all steps.
+    pub max_penetration_before: f64,
+    /// Largest distance of a slave outside the skull in the result.
+    pub max_penetration_after: f64,
+    /// Slaves on the skull (within the tolerance) at the end.
+    pub nodes_in_contact: usize,
+    /// Smallest element volume ratio J of the result (≤ 0: an inverted element).
+    pub min_volume_ratio: f64,
+}
+
+impl Variant {
+    /// The scene with this variant's changes applied.
+    pub fn apply(&self, p: &Prepared) -> Result<Prepared, Failure> {
+        let mut q = p.clone();
+        if let Some(e) = self.element {
+            let (tets, hexes) = q.mesh.count_by_kind();
+            let fits = match e {
+                ElementChoice::H8 => tets == 0,
+                ElementChoice::T4 | ElementChoice::T4anp => hexes == 0,
+            };
+            if !fits {
+                return Err(Failure::Setup(format!(
+                    "element {e:?} does not fit a mesh of {tets} tetrahedra and {hexes} hexahedra"
+                )));
+            }
+            q.element = e;
+            q.scene.mesh.element = Some(e);
+        }
+        if let Some(k) = self.solver {
+            q.scene.solver.kind = k;
+        }
+        if let Some(t) = self.tolerance {
+            q.scene.solver.tolerance = t;
+        }
+        match self.contact {
+            Some(ContactChoice::Off) => {
+                q.scene.contact = None;
+                q.skull = None;
+            }
+            Some(ContactChoice::Handler(a)) => match &mut q.scene.contact {
+                Some(c) => c.algorithm = a,
+                None => {
+                    return Err(Failure::Setup(
+                        "the scene has no skull to use a handler on".into(),
+                    ));
+                }
+            },
+            None => {}
+        }
+        if let Some(nu) = self.poisson_ratio {
+            for r in &mut q.scene.regions {
+                if r.material.poisson_ratio.is_none() {
+                    return Err(Failure::Setup(format!(
+                        "region '{}' is given by shear and bulk moduli, not (E, ν)",
+                        r.elset
+                    )));
+                }
+                r.material.poisson_ratio = Some(nu);
+            }
+        }
+        if let Some(f) = self.load_factor {
+            for comps in &mut q.prescribed {
+                for v in comps.iter_mut().flatten() {
+                    *v *= f;
+                }
+            }
+        }
+        Ok(q)
+    }
+
+    /// Solves the scene with this variant.
+    pub fn solve(&self, p: &Prepared) -> Result<Outcome, Failure> {
+        let q = self.apply(p)?;
+        let defaults = ComposeOptions::default();
+        let opts = ComposeOptions {
+            hourglass: self.hourglass.unwrap_or(defaults.hourglass),
+            contact: PaperParams {
+                additional_lists: self
+                    .additional_lists
+                    .unwrap_or(defaults.contact.additional_lists),
+                ..defaults.contact
+            },
+        };
+        let started = Instant::now();
+        let mut c = compose_with(&q, &opts).map_err(|e| Failure::Setup(e.0))?;
+        let setup_seconds = started.elapsed().as_secs_f64();
+        let mut settings = SolveSettings::of(&q);
+        if let Some(f) = self.step_fraction {
+            settings.step_fraction = f;
+        }
+        settings.max_steps = self.max_steps;
+        let (solution, max_penetration_before) =
+            solve_composed(&mut c, &settings, &mut |_| {}).map_err(Failure::Solve)?;
+        let u = solution.displacements;
+        let (in_contact, max_penetration_after) = final_contact(&q, &c, &u, settings.tolerance);
+        let min_volume_ratio = c
+            .model
+            .element_measures(&u)
+            .map(|m| m.volume_ratio.iter().copied().fold(f64::INFINITY, f64::min))
+            .unwrap_or(f64::NAN);
+        Ok(Outcome {
+            steps: solution.report.steps,
+            setup_seconds,
+            solve_seconds: solution.report.elapsed.as_secs_f64(),
+            contact_seconds: c.contact.as_ref().map_or(0.0, |sc| sc.elapsed.as_secs_f64()),
+            error_estimate: solution.report.err,
+            max_penetration_before,
+            max_penetration_after,
+            nodes_in_contact: in_contact.iter().filter(|&&x| x > 0.0).count(),
+            min_volume_ratio,
+            displacements: u,
+        })
+    }
+}
+
+/// Mean and largest Euclidean distance between two displacement fields over `nodes` (all
+/// nodes when `None`).
+pub fn difference(a: &[Vector3<f64>], b: &[Vector3<f64>], nodes: Option<&[usize]>) -> (f64, f64) {
+    let mut sum = 0.0;
+    let mut max = 0.0f64;
+    let mut n = 0usize;
+    let mut add = |i: usize| {
+        let d = (a[i] - b[i]).norm();
+        sum += d;
+        max = max.max(d);
+        n += 1;
+    };
+    match nodes {
+        Some(list) => list.iter().for_each(|&i| add(i)),
+        None => (0..a.len().min(b.len())).for_each(&mut add),
+    }
+    (if n == 0 { 0.0 } else { sum / n as f64 }, max)
+}
