@@ -14,6 +14,7 @@
 mod bench_contact;
 mod bench_solver;
 mod deps;
+mod plot;
 
 use std::process::ExitCode;
 
