@@ -14,6 +14,7 @@
 mod bench_contact;
 mod bench_solver;
 mod deps;
+#[allow(dead_code)] // until chart and stability use it
 mod plot;
 
 use std::process::ExitCode;
