@@ -8,6 +8,10 @@
 //! * `bench contact`: the paper's contact benchmark for every handler, table written to
 //!   `docs/contact-bench.md`.
 //!
+//! * `validate`: every reference case in one table, written to `docs/validation.md`.
+//! * `reference`: CalculiX reference solutions of the contact fixtures, stored in
+//!   `fixtures/<case>/reference/` (needs `ccx`).
+//!
 //! Benchmarks always run optimised: from a debug build they re-run themselves with
 //! `cargo run --release`.
 
@@ -16,6 +20,8 @@ mod bench_solver;
 mod deps;
 #[allow(dead_code)] // until chart and stability use it
 mod plot;
+mod reference;
+mod validate;
 
 use std::process::ExitCode;
 
@@ -26,6 +32,10 @@ Commands:
   deps            check the workspace crate graph against the layering rules
   bench solver    kernel ns/element-step (1 vs 2 threads), DR vs Newton (release)
   bench contact   contact handlers on the paper's benchmark (writes docs/contact-bench.md)
+  validate        [--quick] every reference case (closed forms, DR vs Newton, contact vs brute
+                  force, DR + contact vs CalculiX); writes docs/validation.md (release)
+  reference       CalculiX reference solutions of the contact fixtures (needs ccx):
+                  [--case NAME] [--deck-only] [--timeout S] [--memory-gib G] [--threads N]
   help            print this help
 ";
 
@@ -78,6 +88,11 @@ fn main() -> ExitCode {
                 ExitCode::from(2)
             }
         },
+        Some("validate") if cfg!(debug_assertions) => rerun_in_release(&args),
+        Some("validate") => report(validate::main(&args[1..]), "validate"),
+        Some("reference") => {
+            report(reference::parse_args(&args[1..]).and_then(|o| reference::run(&o)), "reference")
+        }
         None | Some("help" | "--help" | "-h") => {
             print!("{HELP}");
             ExitCode::SUCCESS

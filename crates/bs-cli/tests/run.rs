@@ -152,25 +152,6 @@ fn bad_scenes_fail_with_their_expected_message() {
     }
 }
 
-/// Lateral stretch of a decoupled Neo-Hookean cube in uniaxial stress with axial stretch
-/// `lambda`: the root of σ₁₁ = (μ/J)(λ̄₁² − Ī₁/3) + κ(J − 1) = 0 (J = l²λ, λ̄ = J^(-1/3)λ),
-/// by bisection to machine precision.
-fn lateral_stretch(lambda: f64, mu: f64, kappa: f64) -> f64 {
-    let sigma = |l: f64| {
-        let j = l * l * lambda;
-        let s = j.powf(-2.0 / 3.0);
-        let i1 = s * (2.0 * l * l + lambda * lambda);
-        mu / j * (s * l * l - i1 / 3.0) + kappa * (j - 1.0)
-    };
-    let (mut lo, mut hi) = (1.0, 1.5); // compression: l > 1
-    assert!(sigma(lo) < 0.0 && sigma(hi) > 0.0);
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if sigma(mid) < 0.0 { lo = mid } else { hi = mid }
-    }
-    0.5 * (lo + hi)
-}
-
 fn cube_mesh(element: &str) -> bs_mesh::Mesh {
     let file = if element == "h8" { "cube-h8.msh" } else { "cube-t4.msh" };
     bs_mesh::io::read_mesh(&root().join("fixtures/basic").join(file)).unwrap()
@@ -185,7 +166,8 @@ fn cube_uniaxial_compression_matches_the_closed_form() {
     let (e, nu) = (3000.0, 0.3);
     let (mu, kappa) = (e / (2.0 * (1.0 + nu)), e / (3.0 * (1.0 - 2.0 * nu)));
     let lambda = 0.9;
-    let l = lateral_stretch(lambda, mu, kappa);
+    let l = bs_material::closed_form::neo_hookean_uniaxial_lateral_stretch(lambda, mu, kappa)
+        .expect("bracketed");
     for element in ["t4", "t4anp", "h8"] {
         let scene = root().join(format!("fixtures/cube/uniaxial-{element}.toml"));
         let dir = TempDir::new(&format!("uniaxial-{element}"));

@@ -662,5 +662,7 @@ impl Material {
     }
 }
 
+pub mod closed_form;
+
 #[cfg(test)]
 mod tests;

@@ -1,0 +1,482 @@
+//! `cargo xtask validate`: every reference case, one table (case, quantity, value,
+//! tolerance, pass), written to `docs/validation.md`; non-zero exit if any case fails.
+//!
+//! Cases:
+//! * homogeneous closed forms (uniaxial compression, simple shear) for T4, T4ANP and H8;
+//! * Dynamic Relaxation against Newton on the same mesh;
+//! * every contact handler against brute force, as closest-point queries on the property
+//!   surfaces and as whole contact solves;
+//! * DR + kinematic contact against the stored CalculiX references (`cargo xtask reference`).
+//!
+//! Every tolerance is derived from the physics or the numerics of the case (documented next
+//! to it), never from what the code happens to produce. The quick cases run in `cargo test`;
+//! the whole set runs optimised (`cargo xtask validate` re-runs itself in release).
+
+use std::collections::HashMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use bs_cli::check::Prepared;
+use bs_cli::scene::{Algorithm, ElementChoice, SolverKind};
+use bs_cli::study::{ContactChoice, Outcome, Variant, difference};
+use bs_contact::shapes::{self, Rng};
+use bs_contact::{BruteForce, ClosestPoint, Handler, MasterSurface, PaperParams};
+use bs_mesh::{Point3, TriSurface, Vector3};
+
+/// One line of the validation table.
+#[derive(Debug, Clone)]
+pub struct Row {
+    /// Group and case, e.g. `closed form / uniaxial t4`.
+    pub case: String,
+    /// What is measured.
+    pub quantity: String,
+    /// Measured value.
+    pub value: f64,
+    /// Largest acceptable value.
+    pub tolerance: f64,
+    /// Unit of value and tolerance.
+    pub unit: &'static str,
+}
+
+impl Row {
+    /// Whether the value is within the tolerance (NaN never passes).
+    pub fn pass(&self) -> bool {
+        self.value <= self.tolerance
+    }
+}
+
+/// Which cases to run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scope {
+    /// The cases that take seconds in a debug build (`cargo test`).
+    Quick,
+    /// Everything (release).
+    Full,
+}
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn load(rel: &str) -> Result<Prepared, String> {
+    Prepared::load(&root().join(rel)).map_err(|e| format!("{rel}: {e}"))
+}
+
+fn solve(p: &Prepared, v: &Variant, what: &str) -> Result<Outcome, String> {
+    v.solve(p).map_err(|e| format!("{what}: {e}"))
+}
+
+/// Runs the cases of `scope`, printing each row as it is measured.
+pub fn run(scope: Scope) -> Result<Vec<Row>, String> {
+    let mut rows = Vec::new();
+    let mut add = |r: Row| {
+        println!(
+            "{:<46} {:<40} {:>11.3e} {:>10.1e} {:<3} {}",
+            r.case,
+            r.quantity,
+            r.value,
+            r.tolerance,
+            r.unit,
+            if r.pass() { "pass" } else { "FAIL" }
+        );
+        rows.push(r);
+    };
+    closed_forms(&mut add)?;
+    dr_vs_newton(&mut add)?;
+    handler_queries(&mut add)?;
+    if scope == Scope::Full {
+        handler_solves(&mut add)?;
+        calculix(&mut add)?;
+    }
+    Ok(rows)
+}
+
+/// Uniaxial compression (10 %, symmetry planes, lateral faces free) and simple shear
+/// (γ = 0.2, every boundary node prescribed) of the unit cube: the exact fields are
+/// homogeneous, which linear tetrahedra and mean-strain hexahedra represent exactly, so the
+/// only error is the solver's. Tolerance: 1e-6 of the largest displacement, three orders
+/// above the scenes' DR tolerance (1e-10 mm on 0.1–0.2 mm) and far below any formulation
+/// error (a wrong stress term shows at 1e-3 and above).
+fn closed_forms(add: &mut dyn FnMut(Row)) -> Result<(), String> {
+    let (e, nu) = (3000.0, 0.3);
+    let (mu, kappa) = (e / (2.0 * (1.0 + nu)), e / (3.0 * (1.0 - 2.0 * nu)));
+    let lambda = 0.9;
+    let l = bs_material::closed_form::neo_hookean_uniaxial_lateral_stretch(lambda, mu, kappa)
+        .ok_or("no lateral stretch")?;
+    let gamma = 0.2;
+    for element in ["t4", "t4anp", "h8"] {
+        let p = load(&format!("fixtures/cube/uniaxial-{element}.toml"))?;
+        let o = solve(&p, &Variant::default(), "uniaxial")?;
+        let worst = p
+            .mesh
+            .nodes
+            .iter()
+            .zip(&o.displacements)
+            .map(|(x, u)| {
+                (u - Vector3::new((l - 1.0) * x.x, (l - 1.0) * x.y, (lambda - 1.0) * x.z)).amax()
+            })
+            .fold(0.0, f64::max);
+        add(Row {
+            case: format!("closed form / uniaxial {element}"),
+            quantity: "max nodal error / max |u|".into(),
+            value: worst / (1.0 - lambda),
+            tolerance: 1e-6,
+            unit: "",
+        });
+        let p = load(&format!("fixtures/cube/shear-{element}.toml"))?;
+        let o = solve(&p, &Variant::default(), "shear")?;
+        let worst = p
+            .mesh
+            .nodes
+            .iter()
+            .zip(&o.displacements)
+            .map(|(x, u)| (u - Vector3::new(gamma * x.y, 0.0, 0.0)).amax())
+            .fold(0.0, f64::max);
+        add(Row {
+            case: format!("closed form / shear {element}"),
+            quantity: "max nodal error / max |u|".into(),
+            value: worst / gamma,
+            tolerance: 1e-6,
+            unit: "",
+        });
+    }
+    Ok(())
+}
+
+/// DR against Newton on the coarse ellipsoid (T4, its 10 mm push, no skull: Newton needs no
+/// contact). Both solve the same discrete equations; DR stops when its error estimate is
+/// below 1e-5 mm, Newton at 1e-10 of the load. Tolerance: 10× the DR tolerance, because the
+/// estimate extrapolates the slowest mode and may under-read by a small factor.
+fn dr_vs_newton(add: &mut dyn FnMut(Row)) -> Result<(), String> {
+    let p = load("fixtures/ellipsoid/scene.toml")?;
+    let tol = 1e-5;
+    let base = Variant {
+        element: Some(ElementChoice::T4),
+        contact: Some(ContactChoice::Off),
+        tolerance: Some(tol),
+        ..Variant::default()
+    };
+    let dr = solve(&p, &base, "DR")?;
+    let newton =
+        solve(&p, &Variant { solver: Some(SolverKind::Newton), ..base.clone() }, "Newton")?;
+    let (_, max) = difference(&dr.displacements, &newton.displacements, None);
+    add(Row {
+        case: "DR vs Newton / ellipsoid coarse t4".into(),
+        quantity: "max nodal difference".into(),
+        value: max,
+        tolerance: 10.0 * tol,
+        unit: "mm",
+    });
+    Ok(())
+}
+
+/// Property surfaces of the contact tests: smooth, refined, non-convex and sharp-cornered.
+fn property_surfaces() -> Vec<(&'static str, TriSurface)> {
+    let radii = Vector3::new(1.0, 0.8, 0.6);
+    let coarse = shapes::ellipsoid(120, radii);
+    vec![
+        ("ellipsoid-120x4", shapes::refine(&coarse, |p| shapes::onto_ellipsoid(p, radii))),
+        ("bumpy", shapes::bumpy_sphere(500, 10, 0.25, 7)),
+        ("convex-60", shapes::random_convex(60, 5)),
+    ]
+}
+
+/// Every handler's closest point against brute force on 3000 random queries within the
+/// handler's reach of each property surface (inside and outside). Tolerances: distances
+/// agree to 1e-9 of the model size (different formulas for the same point differ by
+/// rounding, ~1e-15), and no inside/outside verdict may differ.
+fn handler_queries(add: &mut dyn FnMut(Row)) -> Result<(), String> {
+    for (name, s) in property_surfaces() {
+        let m = Arc::new(MasterSurface::new(&s).map_err(|e| e.to_string())?);
+        let brute = BruteForce::from_master(m.clone());
+        for alg in [
+            bs_contact::Algorithm::Paper,
+            bs_contact::Algorithm::Coherent,
+            bs_contact::Algorithm::Parry,
+        ] {
+            let mut h = Handler::new(alg, &s, PaperParams::default()).map_err(|e| e.to_string())?;
+            let reach = h.reach().min(2.0 * m.max_edge);
+            let mut rng = Rng::new(7);
+            let (mut worst, mut verdicts) = (0.0f64, 0usize);
+            for i in 0..3000 {
+                let q = surface_point(&s, &mut rng) + rng.direction() * rng.range(0.0, reach);
+                let b = brute.project(&q);
+                match h.closest(i % 7, &q) {
+                    Some(p) => {
+                        worst = worst.max((p.distance - b.distance).abs());
+                        verdicts += usize::from(p.outside != b.outside);
+                    }
+                    // "No correction needed": wrong only if brute force says outside.
+                    None => verdicts += usize::from(b.outside),
+                }
+            }
+            let label = format!("{alg:?}").to_lowercase();
+            add(Row {
+                case: format!("contact query / {label} on {name}"),
+                quantity: "max |distance − brute force| / size".into(),
+                value: worst / m.size,
+                tolerance: 1e-9,
+                unit: "",
+            });
+            add(Row {
+                case: format!("contact query / {label} on {name}"),
+                quantity: "inside/outside verdicts differing".into(),
+                value: verdicts as f64,
+                tolerance: 0.0,
+                unit: "",
+            });
+        }
+    }
+    Ok(())
+}
+
+/// A uniformly random point of a random triangle.
+fn surface_point(s: &TriSurface, rng: &mut Rng) -> Point3<f64> {
+    let t = s.triangles[(rng.next_u64() % s.triangles.len() as u64) as usize];
+    let (mut u, mut v) = (rng.uniform(), rng.uniform());
+    if u + v > 1.0 {
+        u = 1.0 - u;
+        v = 1.0 - v;
+    }
+    let a = s.vertices[t[0]];
+    a + (s.vertices[t[1]] - a) * u + (s.vertices[t[2]] - a) * v
+}
+
+/// Whole DR + contact solves of the coarse ellipsoid (T4ANP, 10 mm push) with each handler
+/// against the brute-force handler. Each converged solution is within the DR tolerance of
+/// the same discrete equilibrium, so two differ by at most twice the tolerance (×5 for the
+/// estimate's extrapolation, as above). The result must also leave no node outside the
+/// skull by more than the tolerance.
+fn handler_solves(add: &mut dyn FnMut(Row)) -> Result<(), String> {
+    let p = load("fixtures/ellipsoid/scene.toml")?;
+    let tol = 1e-4;
+    let with = |a: Algorithm| Variant {
+        contact: Some(ContactChoice::Handler(a)),
+        tolerance: Some(tol),
+        ..Variant::default()
+    };
+    let brute = solve(&p, &with(Algorithm::BruteForce), "brute force")?;
+    for a in [Algorithm::Paper, Algorithm::Coherent, Algorithm::Parry] {
+        let o = solve(&p, &with(a), a.name())?;
+        let (_, max) = difference(&o.displacements, &brute.displacements, None);
+        let case = format!("contact solve / {} vs brute-force", a.name());
+        add(Row {
+            case: case.clone(),
+            quantity: "max nodal difference".into(),
+            value: max,
+            tolerance: 10.0 * tol,
+            unit: "mm",
+        });
+        add(Row {
+            case,
+            quantity: "max penetration of the result".into(),
+            value: o.max_penetration_after,
+            tolerance: tol,
+            unit: "mm",
+        });
+    }
+    Ok(())
+}
+
+/// A stored CalculiX result: displacements by node id and its metadata.
+struct Reference {
+    displacements: HashMap<u64, Vector3<f64>>,
+    meta: serde_json::Value,
+}
+
+fn read_reference(dir: &Path, tag: &str) -> Result<Option<Reference>, String> {
+    let meta_path = dir.join(format!("{tag}.json"));
+    let Ok(meta_text) = std::fs::read_to_string(&meta_path) else { return Ok(None) };
+    let meta: serde_json::Value =
+        serde_json::from_str(&meta_text).map_err(|e| format!("{}: {e}", meta_path.display()))?;
+    let csv_path = dir.join(format!("{tag}.csv"));
+    let Ok(text) = std::fs::read_to_string(&csv_path) else {
+        return Ok(Some(Reference { displacements: HashMap::new(), meta }));
+    };
+    let mut displacements = HashMap::new();
+    for (n, line) in text.lines().enumerate().skip(1) {
+        let bad = || format!("{}:{}: expected node_id,ux,uy,uz", csv_path.display(), n + 1);
+        let f: Vec<&str> = line.split(',').collect();
+        if f.len() != 4 {
+            return Err(bad());
+        }
+        let id: u64 = f[0].parse().map_err(|_| bad())?;
+        let v: Vec<f64> =
+            f[1..].iter().map(|s| s.parse::<f64>()).collect::<Result<_, _>>().map_err(|_| bad())?;
+        displacements.insert(id, Vector3::new(v[0], v[1], v[2]));
+    }
+    Ok(Some(Reference { displacements, meta }))
+}
+
+/// The reference field in mesh node order.
+fn field(p: &Prepared, r: &Reference, what: &str) -> Result<Vec<Vector3<f64>>, String> {
+    p.mesh
+        .node_ids
+        .iter()
+        .map(|id| {
+            r.displacements
+                .get(id)
+                .copied()
+                .ok_or_else(|| format!("{what}: node {id} has no reference displacement"))
+        })
+        .collect()
+}
+
+/// The DR tolerance of the runs compared with CalculiX (mm).
+pub const CCX_DR_TOLERANCE: f64 = 1e-4;
+
+/// How far two valid enforcements of the same faceted rigid surface may place a contact
+/// node: CalculiX's node-to-surface springs act along face normals of the face a node
+/// projects onto, the kinematic contact moves nodes to the exact closest point (onto edges
+/// and vertices too), so across an edge of length L with dihedral angle θ the two constraint
+/// surfaces may differ by up to the facet sagitta L·θ/8. Mean and max over the skull edges.
+pub fn facet_allowance(skull: &TriSurface) -> Result<(f64, f64), String> {
+    let topo = skull.topology().map_err(|e| e.to_string())?;
+    let (mut sum, mut max, mut n) = (0.0, 0.0f64, 0usize);
+    for e in &topo.edges {
+        let [Some(f), Some(g)] = e.faces else { continue };
+        let (a, b) = (skull.area_normal(f).normalize(), skull.area_normal(g).normalize());
+        let theta = a.dot(&b).clamp(-1.0, 1.0).acos();
+        let l = (skull.vertices[e.nodes[0]] - skull.vertices[e.nodes[1]]).norm();
+        let s = l * theta / 8.0;
+        sum += s;
+        max = max.max(s);
+        n += 1;
+    }
+    Ok((if n == 0 { 0.0 } else { sum / n as f64 }, max))
+}
+
+/// DR + kinematic contact (T4 on the reference's own mesh: CalculiX's C3D4 is the same
+/// element) against CalculiX with penalty slope K = 10. The tolerance adds the sources of
+/// legitimate difference, each from the physics or the numerics, none from our result:
+/// * the reference's penalty sensitivity |u(K=1) − u(K=10)| (the penalty error falls as 1/K,
+///   so K = 10 is within a ninth of that of the exact-contact limit);
+/// * the DR tolerance;
+/// * the facet allowance of the skull ([`facet_allowance`]), mean for the mean, max for the
+///   max.
+///
+/// The issue's targets (0.03 mm mean, 0.3 mm max) cap it from above.
+fn calculix(add: &mut dyn FnMut(Row)) -> Result<(), String> {
+    for case in ["sphere-shell", "ellipsoid", "mni152"] {
+        let dir = root().join("fixtures").join(case).join("reference");
+        let (Some(k10), Some(k1)) =
+            (read_reference(&dir, "ccx-k10")?, read_reference(&dir, "ccx-k1")?)
+        else {
+            println!("{case}: no stored CalculiX reference (run `cargo xtask reference`)");
+            continue;
+        };
+        let p = load(&format!("fixtures/{case}/scene.toml"))?;
+        let label = format!("CalculiX / {case}");
+        if k10.meta["converged"] != serde_json::Value::Bool(true) {
+            return Err(format!("{label}: the stored K=10 run did not converge"));
+        }
+        let u10 = field(&p, &k10, &label)?;
+        let u1 = field(&p, &k1, &label)?;
+        let (sens_mean, sens_max) = difference(&u1, &u10, None);
+        let v = Variant {
+            element: Some(ElementChoice::T4),
+            tolerance: Some(CCX_DR_TOLERANCE),
+            ..Variant::default()
+        };
+        let o = solve(&p, &v, &label)?;
+        let (mean, max) = difference(&o.displacements, &u10, None);
+        let skull = p.skull.as_ref().ok_or("the scene has no skull")?;
+        let (facet_mean, facet_max) = facet_allowance(skull)?;
+        println!(
+            "{label}: penalty sensitivity mean {sens_mean:.2e} max {sens_max:.2e} mm; facet \
+             allowance mean {facet_mean:.2e} max {facet_max:.2e} mm; DR {} steps {:.1} s; ccx \
+             {:.1} s",
+            o.steps,
+            o.solve_seconds,
+            k10.meta["wall_seconds"].as_f64().unwrap_or(f64::NAN)
+        );
+        add(Row {
+            case: label.clone(),
+            quantity: "mean nodal |u − u_ccx(K=10)|".into(),
+            value: mean,
+            tolerance: (sens_mean + CCX_DR_TOLERANCE + facet_mean).min(0.03),
+            unit: "mm",
+        });
+        add(Row {
+            case: label.clone(),
+            quantity: "max nodal |u − u_ccx(K=10)|".into(),
+            value: max,
+            tolerance: (sens_max + CCX_DR_TOLERANCE + facet_max).min(0.3),
+            unit: "mm",
+        });
+        add(Row {
+            case: label,
+            quantity: "max penetration of the DR result".into(),
+            value: o.max_penetration_after,
+            tolerance: CCX_DR_TOLERANCE,
+            unit: "mm",
+        });
+    }
+    Ok(())
+}
+
+/// The table as Markdown.
+pub fn markdown(rows: &[Row]) -> String {
+    let mut s = String::from(
+        "| case | quantity | value | tolerance | unit | pass |\n|---|---|---:|---:|---|---|\n",
+    );
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.3e} | {:.1e} | {} | {} |",
+            r.case,
+            r.quantity,
+            r.value,
+            r.tolerance,
+            r.unit,
+            if r.pass() { "pass" } else { "**FAIL**" }
+        );
+    }
+    s
+}
+
+/// `cargo xtask validate [--quick]`: all cases (or the quick ones), the table written into
+/// docs/validation.md between its markers (full run only); error if any case fails.
+pub fn main(args: &[String]) -> Result<(), String> {
+    let scope = match args {
+        [] => Scope::Full,
+        [q] if q == "--quick" => Scope::Quick,
+        _ => return Err("usage: cargo xtask validate [--quick]".into()),
+    };
+    let rows = run(scope)?;
+    if scope == Scope::Quick {
+        let failed = rows.iter().filter(|r| !r.pass()).count();
+        println!("{} quick cases, {failed} failed", rows.len());
+        return if failed == 0 { Ok(()) } else { Err(format!("{failed} case(s) failed")) };
+    }
+    let table = markdown(&rows);
+    let path = root().join("docs/validation.md");
+    let doc = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let (begin, end) = ("<!-- table:begin -->", "<!-- table:end -->");
+    let (Some(a), Some(b)) = (doc.find(begin), doc.find(end)) else {
+        return Err(format!("{}: missing the {begin} / {end} markers", path.display()));
+    };
+    let updated = format!("{}{begin}\n{table}{}", &doc[..a], &doc[b..]);
+    std::fs::write(&path, updated).map_err(|e| format!("{}: {e}", path.display()))?;
+    let failed = rows.iter().filter(|r| !r.pass()).count();
+    println!("{} cases, {failed} failed; table written to {}", rows.len(), path.display());
+    if failed > 0 {
+        return Err(format!("{failed} validation case(s) outside tolerance"));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The quick cases (closed forms, DR vs Newton, contact queries) all pass.
+    #[test]
+    fn quick_validation_cases_pass() {
+        let rows = run(Scope::Quick).unwrap();
+        assert!(rows.len() >= 6 + 1 + 18, "{} rows", rows.len());
+        let failed: Vec<_> = rows.iter().filter(|r| !r.pass()).collect();
+        assert!(failed.is_empty(), "{failed:#?}");
+    }
+}
