@@ -35,17 +35,45 @@ pub struct Case {
     pub scene: &'static str,
     /// Output stem under `reference/` (`ccx` → `ccx-k10.csv`).
     pub stem: &'static str,
-    /// Penalty slopes to run.
+    /// Penalty slopes to run (one run without contact when `contact` is false).
     pub slopes: &'static [f64],
+    /// Whether the skull is in the deck. Without it the comparison isolates material,
+    /// element and geometric nonlinearity from the contact formulation.
+    pub contact: bool,
 }
 
 /// The stored references: every contact fixture at a load ccx converges at, and the paper's
 /// 40 mm ellipsoid load, whose ccx outcome (it may fail) is recorded for the stability map.
 pub const CASES: &[Case] = &[
-    Case { name: "sphere-shell", scene: "scene.toml", stem: "ccx", slopes: &[1.0, 10.0] },
-    Case { name: "ellipsoid", scene: "scene.toml", stem: "ccx", slopes: &[1.0, 10.0] },
-    Case { name: "mni152", scene: "scene.toml", stem: "ccx", slopes: &[1.0, 10.0] },
-    Case { name: "ellipsoid", scene: "scene-40mm.toml", stem: "ccx-40mm", slopes: &[10.0] },
+    Case {
+        name: "sphere-shell",
+        scene: "scene.toml",
+        stem: "ccx",
+        slopes: &[1.0, 10.0],
+        contact: true,
+    },
+    Case {
+        name: "ellipsoid",
+        scene: "scene.toml",
+        stem: "ccx",
+        slopes: &[1.0, 10.0],
+        contact: true,
+    },
+    Case {
+        name: "ellipsoid",
+        scene: "scene.toml",
+        stem: "ccx-nocontact",
+        slopes: &[0.0],
+        contact: false,
+    },
+    Case { name: "mni152", scene: "scene.toml", stem: "ccx", slopes: &[1.0, 10.0], contact: true },
+    Case {
+        name: "ellipsoid",
+        scene: "scene-40mm.toml",
+        stem: "ccx-40mm",
+        slopes: &[10.0],
+        contact: true,
+    },
 ];
 
 /// Options of `cargo xtask reference`.
@@ -113,30 +141,32 @@ pub fn run(o: &Options) -> Result<(), String> {
         let prepared = Prepared::load(&root.join("fixtures").join(case.name).join(case.scene))
             .map_err(|e| e.to_string())?;
         for &k in case.slopes {
-            let tag = format!("{}-k{}", case.stem, k);
+            let tag =
+                if case.contact { format!("{}-k{}", case.stem, k) } else { case.stem.to_string() };
+            let what = if case.contact { format!("K={k}") } else { "no contact".into() };
             let work = root.join("target/reference").join(case.name).join(&tag);
             std::fs::create_dir_all(&work).map_err(|e| format!("{}: {e}", work.display()))?;
-            let deck = Deck::new(&prepared, k)?;
+            let deck = Deck::new(&prepared, case.contact.then_some(k))?;
             deck.write(&work)?;
             let store = root.join("fixtures").join(case.name).join("reference");
             std::fs::create_dir_all(&store).map_err(|e| format!("{}: {e}", store.display()))?;
             std::fs::copy(work.join("job.inp"), store.join(format!("{tag}.inp")))
                 .map_err(|e| format!("copying the deck: {e}"))?;
             let Some(version) = &version else {
-                println!("{label} K={k}: deck written to {}", work.display());
+                println!("{label} {what}: deck written to {}", work.display());
                 continue;
             };
-            println!("{label} K={k}: running ccx in {} ...", work.display());
+            println!("{label} {what}: running ccx in {} ...", work.display());
             let outcome = run_ccx(&work, o)?;
             let result = collect(&prepared, &deck, &work, &outcome);
             println!(
-                "{label} K={k}: {} in {:.1} s, load reached {:.3}{}",
+                "{label} {what}: {} in {:.1} s, load reached {:.3}{}",
                 if result.converged { "converged" } else { "FAILED" },
                 outcome.wall_seconds,
                 result.load_fraction,
                 result.message.as_deref().map(|m| format!(" ({m})")).unwrap_or_default()
             );
-            result.store(&store, &tag, version, k, &outcome, &prepared)?;
+            result.store(&store, &tag, version, case.contact.then_some(k), &outcome, &prepared)?;
         }
     }
     if selected == 0 {
@@ -174,8 +204,9 @@ pub struct Deck {
 }
 
 impl Deck {
-    /// The deck of a prepared scene with penalty slope `k` (force per length³).
-    pub fn new(p: &Prepared, k: f64) -> Result<Deck, String> {
+    /// The deck of a prepared scene with contact of penalty slope `k` (force per length³),
+    /// or without the skull when `k` is `None`.
+    pub fn new(p: &Prepared, k: Option<f64>) -> Result<Deck, String> {
         let skull = p.skull.as_ref().ok_or("the scene has no skull: nothing to compare")?;
         let (tets, hexes) = p.mesh.count_by_kind();
         if hexes > 0 || tets == 0 {
@@ -265,9 +296,10 @@ impl Deck {
             "** brainshift reference deck (cargo xtask reference): CalculiX 2.20.\n\
              ** brain.inp and skull.inp are written next to it by the same command.\n\
              ** Units: length {}, force N, stress N/{}^2.\n\
-             *HEADING\nbrainshift reference, penalty slope K = {k}",
+             *HEADING\nbrainshift reference, {}",
             p.scene.units.symbol(),
-            p.scene.units.symbol()
+            p.scene.units.symbol(),
+            k.map_or("no contact".to_string(), |k| format!("penalty slope K = {k}"))
         );
         c.push_str("*INCLUDE, INPUT=brain.inp\n*INCLUDE, INPUT=skull.inp\n");
         for (r, region) in p.scene.regions.iter().enumerate() {
@@ -286,13 +318,15 @@ impl Deck {
             "*MATERIAL, NAME=RIGID\n*ELASTIC\n1000.0, 0.3\n*SOLID SECTION, ELSET=SKULL, \
              MATERIAL=RIGID\n",
         );
-        let _ = writeln!(
-            c,
-            "*SURFACE, NAME=SLAVE, TYPE=NODE\nSLAVES\n\
+        if let Some(k) = k {
+            let _ = writeln!(
+                c,
+                "*SURFACE, NAME=SLAVE, TYPE=NODE\nSLAVES\n\
              *SURFACE INTERACTION, NAME=SKULLCONTACT\n\
              *SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR\n{k:e}, 1.0e-9\n\
              *CONTACT PAIR, INTERACTION=SKULLCONTACT, TYPE=NODE TO SURFACE\nSLAVE, MASTER"
-        );
+            );
+        }
         c.push_str("*BOUNDARY\nNSKULL, 1, 3\n");
         for (i, comps) in p.prescribed.iter().enumerate() {
             for (d, v) in comps.iter().enumerate() {
@@ -449,7 +483,7 @@ impl Collected {
         dir: &Path,
         tag: &str,
         version: &str,
-        k: f64,
+        k: Option<f64>,
         outcome: &CcxOutcome,
         p: &Prepared,
     ) -> Result<(), String> {
@@ -461,7 +495,9 @@ impl Collected {
             }
             let path = dir.join(format!("{tag}.csv"));
             std::fs::write(&path, csv).map_err(|e| format!("{}: {e}", path.display()))?;
-            max_penetration = Some(penetration(p, &self.displacements)?);
+            if k.is_some() {
+                max_penetration = Some(penetration(p, &self.displacements)?);
+            }
         }
         let json = serde_json::json!({
             "ccx_version": version,
