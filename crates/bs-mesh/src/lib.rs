@@ -10,6 +10,8 @@
 //!   volume node indices.
 //! * [`validate`](Mesh::validate): typed [`MeshError`]s for inverted or degenerate elements,
 //!   out-of-range or duplicate nodes, unused nodes.
+//! * [`TetLocator`]: point location in a tetrahedral mesh, to carry a nodal field onto the
+//!   nodes of another mesh ([`transfer`]).
 //! * [`io`]: readers and writers for Abaqus `.inp`, Gmsh `.msh` (2.2 and 4.1 ASCII), VTK
 //!   legacy, VTU, STL, OBJ and OFF. Every parse error names the file and line (or byte
 //!   offset) and what was expected.
@@ -18,12 +20,14 @@
 
 mod boundary;
 pub mod io;
+mod locate;
 mod mesh;
 pub mod quality;
 mod surface;
 mod validate;
 
 pub use boundary::BoundarySurface;
+pub use locate::{LocateError, Location, TetLocator, transfer};
 pub use mesh::{Element, ElementKind, HEX_REFERENCE, Mesh};
 pub use nalgebra::{Point3, Vector3};
 pub use surface::{Edge, SurfaceCheck, SurfaceError, SurfaceTopology, TriSurface};
