@@ -525,7 +525,7 @@ fn penetration(p: &Prepared, u: &[(u64, [f64; 3])]) -> Result<f64, String> {
         let i = p.mesh.node_index(*id).ok_or_else(|| format!("ccx printed unknown node {id}"))?;
         field[i] = Vector3::new(d[0], d[1], d[2]);
     }
-    Ok(bs_cli::study::final_contact(p, &c, &field, 0.0).1)
+    Ok(bs_cli::study::contact_state(p, &c, &field, 0.0).max_penetration)
 }
 
 #[cfg(test)]

@@ -193,7 +193,7 @@ fn write_outputs(
     let n = p.mesh.nodes.len();
     let tol = p.scene.solver.tolerance;
 
-    let (in_contact, max_penetration_after) = final_contact(p, c, u, tol);
+    let (in_contact, max_penetration_after) = final_contact(p, c, u, tol)?;
 
     std::fs::create_dir_all(&opts.out)
         .map_err(|e| format!("cannot create the output folder {}: {e}", opts.out.display()))?;

@@ -81,25 +81,72 @@ pub fn solve_composed(
     Ok((solution, max_penetration))
 }
 
-/// Contact state of a result: per node 1 if the node is a slave within `tol` of the skull
-/// (0 otherwise), and the largest distance of any slave outside the skull. Exact (brute
-/// force): it runs once per solve.
-pub fn final_contact(p: &Prepared, c: &Composed, u: &[Vector3<f64>], tol: f64) -> (Vec<f64>, f64) {
-    let mut in_contact = vec![0.0; p.mesh.nodes.len()];
-    let mut max_penetration_after = 0.0f64;
+/// Contact state of a result, measured exactly (brute force, once per solve).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContactState {
+    /// Per node: 1 if the node is a slave within the tolerance of the skull, else 0.
+    pub in_contact: Vec<f64>,
+    /// Largest distance of any slave outside the skull (0 if none).
+    pub max_penetration: f64,
+    /// Slaves outside by more than the tolerance, and the worst one (node index, distance).
+    pub outside: usize,
+    /// The slave farthest outside beyond the tolerance.
+    pub worst: Option<(usize, f64)>,
+}
+
+/// The contact state of displacements `u` with tolerance `tol` (no skull: nothing in
+/// contact, nothing outside).
+pub fn contact_state(p: &Prepared, c: &Composed, u: &[Vector3<f64>], tol: f64) -> ContactState {
+    let mut st = ContactState {
+        in_contact: vec![0.0; p.mesh.nodes.len()],
+        max_penetration: 0.0,
+        outside: 0,
+        worst: None,
+    };
     if let Some(master) = &c.master {
         let mut brute = bs_contact::BruteForce::from_master(std::sync::Arc::new(master.clone()));
         let points: Vec<_> = c.slaves.iter().map(|&i| p.mesh.nodes[i] + u[i]).collect();
         for (row, &i) in bs_contact::gap(&mut brute, master, &points).iter().zip(&c.slaves) {
             if row.signed_distance <= tol {
-                in_contact[i] = 1.0;
+                st.in_contact[i] = 1.0;
             }
             if row.outside {
-                max_penetration_after = max_penetration_after.max(-row.signed_distance);
+                let d = -row.signed_distance;
+                st.max_penetration = st.max_penetration.max(d);
+                if d > tol {
+                    st.outside += 1;
+                    if st.worst.is_none_or(|(_, w)| d > w) {
+                        st.worst = Some((i, d));
+                    }
+                }
             }
         }
     }
-    (in_contact, max_penetration_after)
+    st
+}
+
+/// The last guard of a run: per node 1 if in contact (see [`ContactState`]) and the largest
+/// penetration, or an error naming the worst node when a slave ended outside the skull by
+/// more than `tol` (a contact handler that missed penetrations, e.g. without the §3.2
+/// additional lists at a sharp skull corner). Such a result is never written.
+pub fn final_contact(
+    p: &Prepared,
+    c: &Composed,
+    u: &[Vector3<f64>],
+    tol: f64,
+) -> Result<(Vec<f64>, f64), String> {
+    let st = contact_state(p, c, u, tol);
+    if let Some((i, d)) = st.worst {
+        return Err(format!(
+            "contact check failed: {} brain surface node{} ended outside the skull by more \
+             than the tolerance {tol:e}; worst: node {} by {d:.3e}. The contact handler missed \
+             penetrations; run the scene with algorithm = \"brute-force\" to confirm",
+            st.outside,
+            if st.outside == 1 { "" } else { "s" },
+            p.mesh.node_ids[i]
+        ));
+    }
+    Ok((st.in_contact, st.max_penetration))
 }
 
 /// The contact of a variant.
@@ -143,6 +190,8 @@ pub enum Failure {
     Setup(String),
     /// The solver stopped with a typed error.
     Solve(SolveError),
+    /// The solver converged but the result failed the post-solve contact check.
+    Check(String),
 }
 
 impl std::fmt::Display for Failure {
@@ -150,6 +199,7 @@ impl std::fmt::Display for Failure {
         match self {
             Failure::Setup(e) => write!(f, "setup: {e}"),
             Failure::Solve(e) => write!(f, "the solver stopped: {e}"),
+            Failure::Check(e) => f.write_str(e),
         }
     }
 }
@@ -265,7 +315,8 @@ impl Variant {
         let (solution, max_penetration_before) =
             solve_composed(&mut c, &settings, &mut |_| {}).map_err(Failure::Solve)?;
         let u = solution.displacements;
-        let (in_contact, max_penetration_after) = final_contact(&q, &c, &u, settings.tolerance);
+        let (in_contact, max_penetration_after) =
+            final_contact(&q, &c, &u, settings.tolerance).map_err(Failure::Check)?;
         let min_volume_ratio = c
             .model
             .element_measures(&u)
