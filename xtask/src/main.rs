@@ -9,6 +9,10 @@
 //!   `docs/contact-bench.md`.
 //!
 //! * `validate`: every reference case in one table, written to `docs/validation.md`.
+//! * `chart`: speed against accuracy over mesh density, element, DR tolerance, contact
+//!   handler and solver, with CalculiX's points and the Pareto front (`docs/charts/`).
+//! * `stability`: the stability map, one run per cell: converged, stopped by a guard, or
+//!   failed silently (which must never happen).
 //! * `reference`: CalculiX reference solutions of the contact fixtures, stored in
 //!   `fixtures/<case>/reference/` (needs `ccx`).
 //!
@@ -17,10 +21,11 @@
 
 mod bench_contact;
 mod bench_solver;
+mod chart;
 mod deps;
-#[allow(dead_code)] // until chart and stability use it
 mod plot;
 mod reference;
+mod stability;
 mod validate;
 
 use std::process::ExitCode;
@@ -34,6 +39,11 @@ Commands:
   bench contact   contact handlers on the paper's benchmark (writes docs/contact-bench.md)
   validate        [--quick] every reference case (closed forms, DR vs Newton, contact vs brute
                   force, DR + contact vs CalculiX); writes docs/validation.md (release)
+  chart           [--case NAME] speed vs accuracy: mesh density, element, DR tolerance, contact
+                  handler, DR vs Newton, CalculiX; writes docs/charts/ and docs/speed-accuracy.md
+                  (release)
+  stability       [--quick] the stability map: time step, Poisson ratio, hourglass control,
+                  load until inversion, contact lists at sharp corners (writes docs/charts/)
   reference       CalculiX reference solutions of the contact fixtures (needs ccx):
                   [--case NAME] [--deck-only] [--timeout S] [--memory-gib G] [--threads N]
   help            print this help
@@ -90,6 +100,10 @@ fn main() -> ExitCode {
         },
         Some("validate") if cfg!(debug_assertions) => rerun_in_release(&args),
         Some("validate") => report(validate::main(&args[1..]), "validate"),
+        Some("chart") if cfg!(debug_assertions) => rerun_in_release(&args),
+        Some("chart") => report(chart::main(&args[1..]), "chart"),
+        Some("stability") if cfg!(debug_assertions) => rerun_in_release(&args),
+        Some("stability") => report(stability::main(&args[1..]), "stability"),
         Some("reference") => {
             report(reference::parse_args(&args[1..]).and_then(|o| reference::run(&o)), "reference")
         }

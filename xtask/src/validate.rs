@@ -55,7 +55,7 @@ pub enum Scope {
     Full,
 }
 
-fn root() -> PathBuf {
+pub(crate) fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
@@ -280,12 +280,12 @@ fn handler_solves(add: &mut dyn FnMut(Row)) -> Result<(), String> {
 }
 
 /// A stored CalculiX result: displacements by node id and its metadata.
-struct Reference {
+pub(crate) struct Reference {
     displacements: HashMap<u64, Vector3<f64>>,
-    meta: serde_json::Value,
+    pub(crate) meta: serde_json::Value,
 }
 
-fn read_reference(dir: &Path, tag: &str) -> Result<Option<Reference>, String> {
+pub(crate) fn read_reference(dir: &Path, tag: &str) -> Result<Option<Reference>, String> {
     let meta_path = dir.join(format!("{tag}.json"));
     let Ok(meta_text) = std::fs::read_to_string(&meta_path) else { return Ok(None) };
     let meta: serde_json::Value =
@@ -310,7 +310,7 @@ fn read_reference(dir: &Path, tag: &str) -> Result<Option<Reference>, String> {
 }
 
 /// The reference field in mesh node order.
-fn field(p: &Prepared, r: &Reference, what: &str) -> Result<Vec<Vector3<f64>>, String> {
+pub(crate) fn field(p: &Prepared, r: &Reference, what: &str) -> Result<Vec<Vector3<f64>>, String> {
     p.mesh
         .node_ids
         .iter()

@@ -1,0 +1,756 @@
+//! `cargo xtask chart`: speed against accuracy. Every configuration of a case (mesh density,
+//! element technology, DR tolerance, contact handler; DR against Newton without contact) is
+//! solved through the code path of `brainshift run` ([`bs_cli::study`]), timed, and compared
+//! with the finest converged solution of the case: the finest mesh, T4ANP, DR tolerance
+//! 1e-5 mm. Results on other meshes are compared at their own nodes, with the reference
+//! carried over by [`bs_mesh::TetLocator`]. CalculiX's stored solutions are placed on the
+//! same axes (their stored run time, measured on this kind of machine by `cargo xtask
+//! reference`).
+//!
+//! Writes `docs/charts/speed-accuracy-<case>.{svg,png,csv}`, `docs/charts/dr-vs-newton.*`,
+//! the findings table into `docs/speed-accuracy.md` (between markers) and the findings that
+//! `brainshift check` prints as advice into `crates/bs-cli/data/speed-accuracy.json`.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use bs_cli::check::Prepared;
+use bs_cli::scene::{Algorithm, ElementChoice, SolverKind};
+use bs_cli::study::{ContactChoice, Variant, difference};
+use bs_mesh::{Mesh, TetLocator, Vector3, transfer};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use crate::plot::{self, Figure, PALETTE, err};
+use crate::validate::{read_reference, root};
+
+/// DR tolerance of the reference solution of each case (mm).
+pub const REFERENCE_TOLERANCE: f64 = 1e-5;
+/// DR tolerances of the sweep (mm).
+pub const TOLERANCES: [f64; 4] = [1e-1, 1e-2, 1e-3, 1e-4];
+/// Accuracy targets named in the findings (mean nodal error, mm).
+pub const TARGETS: [f64; 2] = [0.1, 0.5];
+
+/// One solved (or failed) configuration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChartPoint {
+    /// Case name (`ellipsoid`, `mni152`).
+    pub case: String,
+    /// Legend entry the point belongs to.
+    pub series: String,
+    /// Mesh level label.
+    pub level: String,
+    /// Element technology (`t4`, `t4anp`) or CalculiX's element.
+    pub element: String,
+    /// `dr`, `newton` or `calculix`.
+    pub solver: String,
+    /// Contact handler (`none` without skull, `penalty` for CalculiX).
+    pub handler: String,
+    /// DR/Newton tolerance (mm); NaN for CalculiX.
+    pub tolerance: f64,
+    /// Nodes of the mesh.
+    pub nodes: usize,
+    /// Mean element edge of the mesh (mm).
+    pub mean_edge: f64,
+    /// Wall time: setup and solve (s).
+    pub seconds: f64,
+    /// DR steps or Newton iterations (0 for CalculiX).
+    pub steps: usize,
+    /// Mean nodal |u − u_ref| (mm).
+    pub mean_error: f64,
+    /// Largest nodal |u − u_ref| (mm).
+    pub max_error: f64,
+    /// Mean nodal |u − u_ccx(K=10)| where that reference exists on this mesh (mm).
+    pub mean_error_ccx: Option<f64>,
+    /// Whether this point is the case's reference (error 0 by definition).
+    pub is_reference: bool,
+}
+
+impl ChartPoint {
+    /// A short name of the configuration.
+    pub fn label(&self) -> String {
+        if self.solver == "calculix" {
+            return format!("CalculiX {} ({})", self.handler, self.level);
+        }
+        format!(
+            "{} {} {} tol {:.0e}{}",
+            self.level,
+            self.element,
+            self.solver,
+            self.tolerance,
+            if self.handler == "none" { String::new() } else { format!(" {}", self.handler) }
+        )
+    }
+}
+
+/// A case: its mesh levels from coarse to fine (scene files), and which level CalculiX's
+/// stored references were computed on.
+#[derive(Debug, Clone)]
+struct Case {
+    name: &'static str,
+    levels: Vec<(&'static str, &'static str)>,
+    ccx_level: &'static str,
+    /// Brute-force contact is run only where it takes minutes, not hours.
+    brute_force: bool,
+}
+
+fn cases() -> Vec<Case> {
+    vec![
+        Case {
+            name: "ellipsoid",
+            levels: vec![
+                ("coarse", "fixtures/ellipsoid/scene.toml"),
+                ("medium", "fixtures/ellipsoid/scene-medium.toml"),
+                ("fine", "fixtures/ellipsoid/scene-fine.toml"),
+            ],
+            ccx_level: "coarse",
+            brute_force: true,
+        },
+        Case {
+            name: "mni152",
+            levels: vec![
+                ("coarse", "fixtures/mni152/scene-coarse.toml"),
+                ("default", "fixtures/mni152/scene.toml"),
+                ("fine", "fixtures/mni152/scene-fine.toml"),
+            ],
+            ccx_level: "default",
+            brute_force: false,
+        },
+    ]
+}
+
+/// Mean edge length over the elements' edges (each element counts its own edges).
+pub fn mean_edge(mesh: &Mesh) -> f64 {
+    let (mut sum, mut n) = (0.0, 0usize);
+    for el in &mesh.elements {
+        let v = el.nodes();
+        if v.len() != 4 {
+            continue;
+        }
+        for (a, b) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
+            sum += (mesh.nodes[v[a]] - mesh.nodes[v[b]]).norm();
+            n += 1;
+        }
+    }
+    if n == 0 { f64::NAN } else { sum / n as f64 }
+}
+
+/// A level of a case with the reference carried onto its nodes.
+struct Level {
+    label: &'static str,
+    p: Prepared,
+    reference: Vec<Vector3<f64>>,
+    mean_edge: f64,
+    /// CalculiX K = 10 on this level, where stored.
+    ccx: Option<Vec<Vector3<f64>>>,
+}
+
+fn element_name(e: ElementChoice) -> &'static str {
+    match e {
+        ElementChoice::T4 => "t4",
+        ElementChoice::T4anp => "t4anp",
+        ElementChoice::H8 => "h8",
+    }
+}
+
+/// Solves `v` on `level` and measures it against the level's reference field.
+fn measure(case: &str, series: &str, level: &Level, v: &Variant) -> Result<ChartPoint, String> {
+    let q = v.apply(&level.p).map_err(|e| e.to_string())?;
+    let o = v.solve(&level.p).map_err(|e| format!("{case} {} {v:?}: {e}", level.label))?;
+    let (mean, max) = difference(&o.displacements, &level.reference, None);
+    let point = ChartPoint {
+        case: case.into(),
+        series: series.into(),
+        level: level.label.into(),
+        element: element_name(q.element).into(),
+        solver: match q.scene.solver.kind {
+            SolverKind::Dr => "dr".into(),
+            SolverKind::Newton => "newton".into(),
+        },
+        handler: q.scene.contact.as_ref().map_or("none", |c| c.algorithm.name()).into(),
+        tolerance: q.scene.solver.tolerance,
+        nodes: level.p.mesh.nodes.len(),
+        mean_edge: level.mean_edge,
+        seconds: o.setup_seconds + o.solve_seconds,
+        steps: o.steps,
+        mean_error: mean,
+        max_error: max,
+        mean_error_ccx: level.ccx.as_ref().map(|u| difference(&o.displacements, u, None).0),
+        is_reference: false,
+    };
+    println!(
+        "{:<10} {:<44} {:>8.2} s {:>7} steps  mean {:.2e} max {:.2e} mm",
+        case,
+        point.label(),
+        point.seconds,
+        point.steps,
+        mean,
+        max
+    );
+    Ok(point)
+}
+
+/// Loads the levels and solves `reference` on the finest, carrying its field onto the
+/// nodes of every level. Returns the levels and the reference's own point.
+fn levels_with_reference(
+    case: &Case,
+    reference: &Variant,
+) -> Result<(Vec<Level>, ChartPoint), String> {
+    let mut preps = Vec::new();
+    for (label, path) in &case.levels {
+        let p = Prepared::load(&root().join(path)).map_err(|e| format!("{path}: {e}"))?;
+        preps.push((*label, p));
+    }
+    let (finest_label, finest) = preps.last().ok_or("a case needs at least one level")?;
+    let o = reference.solve(finest).map_err(|e| format!("{} reference: {e}", case.name))?;
+    let locator = TetLocator::new(&finest.mesh).map_err(|e| e.to_string())?;
+    let levels: Vec<Level> = preps
+        .iter()
+        .map(|(label, p)| Level {
+            label,
+            reference: transfer(&locator, &o.displacements, &p.mesh.nodes),
+            mean_edge: mean_edge(&p.mesh),
+            p: p.clone(),
+            ccx: None,
+        })
+        .collect();
+    let q = reference.apply(finest).map_err(|e| e.to_string())?;
+    let point = ChartPoint {
+        case: case.name.into(),
+        series: "reference".into(),
+        level: (*finest_label).into(),
+        element: element_name(q.element).into(),
+        solver: if q.scene.solver.kind == SolverKind::Dr { "dr" } else { "newton" }.into(),
+        handler: q.scene.contact.as_ref().map_or("none", |c| c.algorithm.name()).into(),
+        tolerance: q.scene.solver.tolerance,
+        nodes: finest.mesh.nodes.len(),
+        mean_edge: mean_edge(&finest.mesh),
+        seconds: o.setup_seconds + o.solve_seconds,
+        steps: o.steps,
+        mean_error: 0.0,
+        max_error: 0.0,
+        mean_error_ccx: None,
+        is_reference: true,
+    };
+    println!(
+        "{:<10} reference {} ({:.1} s, {} steps)",
+        case.name,
+        point.label(),
+        point.seconds,
+        o.steps
+    );
+    Ok((levels, point))
+}
+
+/// The speed–accuracy sweep of one case with contact.
+fn contact_sweep(case: &Case) -> Result<Vec<ChartPoint>, String> {
+    let reference = Variant {
+        element: Some(ElementChoice::T4anp),
+        tolerance: Some(REFERENCE_TOLERANCE),
+        ..Variant::default()
+    };
+    let (mut levels, ref_point) = levels_with_reference(case, &reference)?;
+    let mut points = vec![ref_point];
+    calculix_points(case, &mut levels, &mut points)?;
+    for level in &levels {
+        for element in [ElementChoice::T4, ElementChoice::T4anp] {
+            let series = format!("{} {}", element_name(element), level.label);
+            for tol in TOLERANCES {
+                let v =
+                    Variant { element: Some(element), tolerance: Some(tol), ..Variant::default() };
+                points.push(measure(case.name, &series, level, &v)?);
+            }
+        }
+    }
+    // Contact handlers on the middle level (T4ANP, 1e-3 mm): the scene's own handler is
+    // already in the sweep.
+    let middle = &levels[levels.len() / 2];
+    let own = middle.p.scene.contact.as_ref().map(|c| c.algorithm);
+    for a in [Algorithm::Paper, Algorithm::Coherent, Algorithm::Parry, Algorithm::BruteForce] {
+        if Some(a) == own || (a == Algorithm::BruteForce && !case.brute_force) {
+            continue;
+        }
+        let v = Variant {
+            element: Some(ElementChoice::T4anp),
+            tolerance: Some(1e-3),
+            contact: Some(ContactChoice::Handler(a)),
+            ..Variant::default()
+        };
+        points.push(measure(case.name, "handlers", middle, &v)?);
+    }
+    Ok(points)
+}
+
+/// CalculiX's stored solutions as points, at their stored wall time; the K = 10 field is
+/// kept on its level so every point solved there is also measured against it.
+fn calculix_points(
+    case: &Case,
+    levels: &mut [Level],
+    points: &mut Vec<ChartPoint>,
+) -> Result<(), String> {
+    let Some(level) = levels.iter_mut().find(|l| l.label == case.ccx_level) else {
+        return Ok(());
+    };
+    let dir = root().join("fixtures").join(case.name).join("reference");
+    for (tag, k) in [("ccx-k10", "K=10"), ("ccx-k1", "K=1")] {
+        let Some(r) = read_reference(&dir, tag)? else { continue };
+        if r.meta["converged"] != serde_json::Value::Bool(true) {
+            continue;
+        }
+        let u = crate::validate::field(&level.p, &r, tag)?;
+        let (mean, max) = difference(&u, &level.reference, None);
+        points.push(ChartPoint {
+            case: case.name.into(),
+            series: "CalculiX".into(),
+            level: level.label.into(),
+            element: "c3d4".into(),
+            solver: "calculix".into(),
+            handler: format!("penalty {k}"),
+            tolerance: f64::NAN,
+            nodes: level.p.mesh.nodes.len(),
+            mean_edge: level.mean_edge,
+            seconds: r.meta["wall_seconds"].as_f64().unwrap_or(f64::NAN),
+            steps: 0,
+            mean_error: mean,
+            max_error: max,
+            mean_error_ccx: None,
+            is_reference: false,
+        });
+        if tag == "ccx-k10" {
+            level.ccx = Some(u);
+        }
+    }
+    Ok(())
+}
+
+/// DR against Newton without contact on the ellipsoid levels (T4: Newton has no T4ANP),
+/// against the finest Newton solution.
+fn newton_sweep(case: &Case) -> Result<Vec<ChartPoint>, String> {
+    let base = Variant {
+        element: Some(ElementChoice::T4),
+        contact: Some(ContactChoice::Off),
+        ..Variant::default()
+    };
+    let reference =
+        Variant { solver: Some(SolverKind::Newton), tolerance: Some(1e-8), ..base.clone() };
+    let (levels, ref_point) = levels_with_reference(case, &reference)?;
+    let mut points = vec![ref_point];
+    for level in &levels {
+        for tol in [1e-2, 1e-3, 1e-4] {
+            let v = Variant { tolerance: Some(tol), ..base.clone() };
+            points.push(measure(case.name, &format!("DR t4 {}", level.label), level, &v)?);
+        }
+        if level.label != levels.last().map_or("", |l| l.label) {
+            points.push(measure(case.name, "Newton t4", level, &reference)?);
+        }
+    }
+    Ok(points)
+}
+
+/// Indices of the points on the Pareto front (no other point is both faster and more
+/// accurate), sorted by time. Reference points and CalculiX are left out: the front is of
+/// brainshift's own configurations.
+pub fn pareto_front(points: &[ChartPoint]) -> Vec<usize> {
+    let mut idx: Vec<usize> = (0..points.len())
+        .filter(|&i| {
+            let p = &points[i];
+            !p.is_reference && p.solver != "calculix" && p.seconds.is_finite()
+        })
+        .collect();
+    idx.sort_by(|&a, &b| {
+        points[a]
+            .seconds
+            .total_cmp(&points[b].seconds)
+            .then(points[a].mean_error.total_cmp(&points[b].mean_error))
+    });
+    let mut front = Vec::new();
+    let mut best = f64::INFINITY;
+    for i in idx {
+        if points[i].mean_error < best {
+            best = points[i].mean_error;
+            front.push(i);
+        }
+    }
+    front
+}
+
+/// The fastest of brainshift's configurations whose mean error is within `target`.
+pub fn cheapest(points: &[ChartPoint], target: f64) -> Option<&ChartPoint> {
+    points
+        .iter()
+        .filter(|p| !p.is_reference && p.solver != "calculix" && p.mean_error <= target)
+        .min_by(|a, b| a.seconds.total_cmp(&b.seconds))
+}
+
+/// The chart of one case: log-log, one line per tolerance sweep, handler and CalculiX
+/// points labelled, the Pareto front dashed, the targets dotted.
+struct SpeedAccuracy<'a> {
+    title: String,
+    points: &'a [ChartPoint],
+}
+
+impl Figure for SpeedAccuracy<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
+        let shown: Vec<&ChartPoint> = self
+            .points
+            .iter()
+            .filter(|p| !p.is_reference && p.mean_error > 0.0 && p.seconds > 0.0)
+            .collect();
+        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, 0.0f64, f64::MAX, 0.0f64);
+        for p in &shown {
+            x0 = x0.min(p.seconds);
+            x1 = x1.max(p.seconds);
+            y0 = y0.min(p.mean_error);
+            y1 = y1.max(p.mean_error);
+        }
+        if shown.is_empty() {
+            return Err("nothing to draw".into());
+        }
+        let (x0, x1) = (x0 / 1.5, x1 * 1.5);
+        let (y0, y1) = (y0.min(TARGETS[0]) / 2.0, y1.max(TARGETS[1]) * 2.0);
+        let mut chart = ChartBuilder::on(root)
+            .caption(&self.title, ("sans-serif", 22))
+            .margin(12)
+            .x_label_area_size(45)
+            .y_label_area_size(70)
+            .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+            .map_err(err)?;
+        chart
+            .configure_mesh()
+            .x_desc("wall time, setup + solve (s), 2 threads")
+            .y_desc("mean nodal error vs finest solution (mm)")
+            .x_label_formatter(&|x| format!("{x:.3}"))
+            .y_label_formatter(&|y| format!("{y:.0e}"))
+            .draw()
+            .map_err(err)?;
+        for t in TARGETS {
+            chart
+                .draw_series(LineSeries::new(
+                    [(x0, t), (x1, t)],
+                    ShapeStyle::from(&RGBColor(150, 150, 150)).stroke_width(1),
+                ))
+                .map_err(err)?
+                .label(format!("target {t} mm"))
+                .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RGBColor(150, 150, 150)));
+        }
+        let mut series: Vec<&str> = Vec::new();
+        for p in &shown {
+            if !series.contains(&p.series.as_str()) {
+                series.push(&p.series);
+            }
+        }
+        for (k, name) in series.iter().enumerate() {
+            let color = if *name == "CalculiX" { PALETTE[6] } else { PALETTE[k % 6] };
+            let mut pts: Vec<&&ChartPoint> = shown.iter().filter(|p| p.series == *name).collect();
+            pts.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
+            let xy: Vec<(f64, f64)> = pts.iter().map(|p| (p.seconds, p.mean_error)).collect();
+            let lines = *name != "CalculiX" && *name != "handlers";
+            if lines {
+                chart.draw_series(LineSeries::new(xy.clone(), &color)).map_err(err)?;
+            }
+            let solid = *name == "CalculiX";
+            chart
+                .draw_series(xy.iter().map(|&c| {
+                    if solid {
+                        Cross::new(c, 6, color.stroke_width(2)).into_dyn()
+                    } else {
+                        Circle::new(c, 4, color.filled()).into_dyn()
+                    }
+                }))
+                .map_err(err)?
+                .label(*name)
+                .legend(move |(x, y)| Circle::new((x + 8, y), 4, color.filled()));
+            if !lines {
+                chart
+                    .draw_series(pts.iter().map(|p| {
+                        let text = if p.solver == "calculix" {
+                            format!("ccx {}", p.handler.trim_start_matches("penalty "))
+                        } else {
+                            p.handler.clone()
+                        };
+                        Text::new(text, (p.seconds * 1.08, p.mean_error), ("sans-serif", 13))
+                    }))
+                    .map_err(err)?;
+            }
+        }
+        let front: Vec<(f64, f64)> = pareto_front(self.points)
+            .into_iter()
+            .map(|i| (self.points[i].seconds, self.points[i].mean_error))
+            .collect();
+        let mut steps = Vec::new();
+        for (k, &(x, y)) in front.iter().enumerate() {
+            if k > 0 {
+                steps.push((x, front[k - 1].1));
+            }
+            steps.push((x, y));
+        }
+        chart
+            .draw_series(DashedLineSeries::new(
+                steps,
+                6,
+                4,
+                ShapeStyle::from(&BLACK).stroke_width(1),
+            ))
+            .map_err(err)?
+            .label("Pareto front")
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK));
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 13))
+            .draw()
+            .map_err(err)?;
+        Ok(())
+    }
+}
+
+/// The points as CSV (one row each).
+pub fn csv(points: &[ChartPoint]) -> String {
+    let mut s = String::from(
+        "case,series,level,element,solver,handler,tolerance_mm,nodes,mean_edge_mm,seconds,steps,\
+         mean_error_mm,max_error_mm,mean_error_vs_ccx_k10_mm,reference\n",
+    );
+    for p in points {
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{},{},{:e},{},{:.3},{:.3},{},{:.4e},{:.4e},{},{}",
+            p.case,
+            p.series,
+            p.level,
+            p.element,
+            p.solver,
+            p.handler,
+            p.tolerance,
+            p.nodes,
+            p.mean_edge,
+            p.seconds,
+            p.steps,
+            p.mean_error,
+            p.max_error,
+            p.mean_error_ccx.map_or(String::new(), |e| format!("{e:.4e}")),
+            p.is_reference
+        );
+    }
+    s
+}
+
+/// The findings of a case: the cheapest configuration per target and the Pareto front.
+pub fn findings_markdown(case: &str, points: &[ChartPoint]) -> String {
+    let mut s = format!("### {case}\n\n");
+    if let Some(r) = points.iter().find(|p| p.is_reference) {
+        let _ = writeln!(
+            s,
+            "Reference: {} ({} nodes, mean edge {:.2} mm), {:.1} s, {} steps.\n",
+            r.label(),
+            r.nodes,
+            r.mean_edge,
+            r.seconds,
+            r.steps
+        );
+    }
+    s.push_str("| target (mean error) | cheapest configuration | time (s) | mean / max error (mm) |\n|---|---|---:|---|\n");
+    for t in TARGETS {
+        match cheapest(points, t) {
+            Some(p) => {
+                let _ = writeln!(
+                    s,
+                    "| ≤ {t} mm | {} (mean edge {:.2} mm) | {:.2} | {:.3} / {:.3} |",
+                    p.label(),
+                    p.mean_edge,
+                    p.seconds,
+                    p.mean_error,
+                    p.max_error
+                );
+            }
+            None => {
+                let _ = writeln!(s, "| ≤ {t} mm | none measured meets it | | |");
+            }
+        }
+    }
+    s.push_str("\nPareto front (fastest first):\n\n| configuration | time (s) | mean error (mm) | vs CalculiX K=10 (mm) |\n|---|---:|---:|---:|\n");
+    for i in pareto_front(points) {
+        let p = &points[i];
+        let _ = writeln!(
+            s,
+            "| {} | {:.2} | {:.3e} | {} |",
+            p.label(),
+            p.seconds,
+            p.mean_error,
+            p.mean_error_ccx.map_or("–".into(), |e| format!("{e:.3e}"))
+        );
+    }
+    for p in points.iter().filter(|p| p.solver == "calculix") {
+        let _ = writeln!(
+            s,
+            "\n{}: {:.1} s (stored run time), mean error {:.3e} mm, max {:.3e} mm.",
+            p.label(),
+            p.seconds,
+            p.mean_error,
+            p.max_error
+        );
+    }
+    s
+}
+
+/// What `brainshift check` needs to give advice: per case and target, the cheapest
+/// configuration in scene terms (relative mesh size, element, relative tolerance).
+fn advice_json(all: &[(String, Vec<ChartPoint>)]) -> serde_json::Value {
+    let mut cases = Vec::new();
+    for (case, points) in all {
+        let Some(r) = points.iter().find(|p| p.is_reference) else { continue };
+        let mut targets = Vec::new();
+        for t in TARGETS {
+            if let Some(p) = cheapest(points, t) {
+                targets.push(serde_json::json!({
+                    "target_mm": t,
+                    "element": p.element,
+                    "handler": p.handler,
+                    "tolerance_mm": p.tolerance,
+                    "mean_edge_mm": p.mean_edge,
+                    "seconds": p.seconds,
+                    "mean_error_mm": p.mean_error,
+                    "max_error_mm": p.max_error,
+                    "level": p.level,
+                }));
+            }
+        }
+        cases.push(serde_json::json!({
+            "case": case,
+            "reference_mean_edge_mm": r.mean_edge,
+            "reference_seconds": r.seconds,
+            "targets": targets,
+        }));
+    }
+    serde_json::json!({
+        "generated_by": "cargo xtask chart",
+        "note": "cheapest configuration meeting each mean-error target, measured against the finest converged solution",
+        "cases": cases,
+    })
+}
+
+fn write(path: &Path, text: &str) -> Result<(), String> {
+    if let Some(d) = path.parent() {
+        std::fs::create_dir_all(d).map_err(|e| format!("{}: {e}", d.display()))?;
+    }
+    std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Replaces the text between `<!-- NAME:begin -->` and `<!-- NAME:end -->` in `path`.
+pub fn replace_block(path: &Path, name: &str, body: &str) -> Result<(), String> {
+    let doc = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let (begin, end) = (format!("<!-- {name}:begin -->"), format!("<!-- {name}:end -->"));
+    let (Some(a), Some(b)) = (doc.find(&begin), doc.find(&end)) else {
+        return Err(format!("{}: missing the {begin} / {end} markers", path.display()));
+    };
+    write(path, &format!("{}{begin}\n{body}{}", &doc[..a], &doc[b..]))
+}
+
+fn charts_dir() -> PathBuf {
+    root().join("docs/charts")
+}
+
+/// `cargo xtask chart [--case NAME]`.
+pub fn main(args: &[String]) -> Result<(), String> {
+    let only = match args {
+        [] => None,
+        [flag, name] if flag == "--case" => Some(name.clone()),
+        _ => return Err("usage: cargo xtask chart [--case ellipsoid|mni152]".into()),
+    };
+    let selected: Vec<Case> =
+        cases().into_iter().filter(|c| only.as_deref().is_none_or(|n| n == c.name)).collect();
+    if selected.is_empty() {
+        return Err(format!("no case named {}", only.unwrap_or_default()));
+    }
+    let mut all = Vec::new();
+    let mut findings = String::new();
+    for case in &selected {
+        let points = contact_sweep(case)?;
+        let stem = charts_dir().join(format!("speed-accuracy-{}", case.name));
+        write(&stem.with_extension("csv"), &csv(&points))?;
+        let title = format!("{}: speed vs accuracy (DR + kinematic contact)", case.name);
+        plot::save(&SpeedAccuracy { title, points: &points }, &stem, (1100, 750))?;
+        findings.push_str(&findings_markdown(case.name, &points));
+        findings.push('\n');
+        all.push((case.name.to_string(), points));
+    }
+    if let Some(ell) = selected.iter().find(|c| c.name == "ellipsoid") {
+        let points = newton_sweep(ell)?;
+        let stem = charts_dir().join("dr-vs-newton-ellipsoid");
+        write(&stem.with_extension("csv"), &csv(&points))?;
+        let title = "ellipsoid without skull: DR vs Newton (T4)".to_string();
+        plot::save(&SpeedAccuracy { title, points: &points }, &stem, (1100, 750))?;
+        findings.push_str(&findings_markdown("ellipsoid without skull (DR vs Newton)", &points));
+    }
+    if only.is_none() {
+        replace_block(&root().join("docs/speed-accuracy.md"), "findings", &findings)?;
+        let json = serde_json::to_string_pretty(&advice_json(&all)).map_err(|e| e.to_string())?;
+        write(&root().join("crates/bs-cli/data/speed-accuracy.json"), &(json + "\n"))?;
+    } else {
+        print!("{findings}");
+    }
+    println!("charts written to {}", charts_dir().display());
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn point(seconds: f64, mean_error: f64) -> ChartPoint {
+        ChartPoint {
+            case: "t".into(),
+            series: "s".into(),
+            level: "l".into(),
+            element: "t4".into(),
+            solver: "dr".into(),
+            handler: "paper".into(),
+            tolerance: 1e-3,
+            nodes: 1,
+            mean_edge: 1.0,
+            seconds,
+            steps: 1,
+            mean_error,
+            max_error: mean_error,
+            mean_error_ccx: None,
+            is_reference: false,
+        }
+    }
+
+    /// The front of a hand-made set, checked against the definition by brute force: a point
+    /// is on it iff no other point is at least as fast and strictly more accurate.
+    #[test]
+    fn pareto_front_matches_its_definition() {
+        let pts: Vec<ChartPoint> =
+            [(1.0, 0.5), (2.0, 0.6), (2.0, 0.2), (3.0, 0.2), (4.0, 0.05), (5.0, 0.3), (6.0, 0.01)]
+                .iter()
+                .map(|&(s, e)| point(s, e))
+                .collect();
+        let front = pareto_front(&pts);
+        assert_eq!(front, vec![0, 2, 4, 6]);
+        for (i, p) in pts.iter().enumerate() {
+            let dominated = pts.iter().enumerate().any(|(j, q)| {
+                j != i
+                    && q.seconds <= p.seconds
+                    && q.mean_error <= p.mean_error
+                    && (q.seconds < p.seconds || q.mean_error < p.mean_error)
+            });
+            assert_eq!(front.contains(&i), !dominated, "point {i}");
+        }
+        assert_eq!(cheapest(&pts, 0.25).map(|p| p.seconds), Some(2.0));
+        assert_eq!(cheapest(&pts, 0.001), None);
+    }
+
+    /// References and CalculiX never count as brainshift's configurations.
+    #[test]
+    fn references_and_calculix_are_not_candidates() {
+        let mut r = point(0.1, 0.0);
+        r.is_reference = true;
+        let mut c = point(0.2, 0.0);
+        c.solver = "calculix".into();
+        let pts = vec![r, c, point(1.0, 0.3)];
+        assert_eq!(pareto_front(&pts), vec![2]);
+        assert_eq!(cheapest(&pts, 0.5).map(|p| p.seconds), Some(1.0));
+    }
+}

@@ -1,0 +1,654 @@
+//! `cargo xtask stability`: where methods fail, as a map. Each cell is one run with its
+//! outcome: converged, stopped by a guard (which one), or failed silently — a run that
+//! returned a result that is not finite, has an inverted element or leaves a brain node
+//! outside the skull. The last must never happen; the test below runs the quick rows and
+//! asserts it.
+//!
+//! Rows (each a parameter swept on one scene):
+//! * DR time step as a multiple of the element-bound critical step, 0.5…3;
+//! * Poisson's ratio 0.45…0.4999 for T4 and for T4ANP (T4 locks: its deviation from T4ANP
+//!   is recorded);
+//! * H8 hourglass control on and off;
+//! * growing indentation until an element inverts;
+//! * the paper's ellipsoid pushed 10…40 mm with kinematic contact, with CalculiX's stored
+//!   outcome beside it;
+//! * contact at sharp skull corners with and without the §3.2 additional lists.
+//!
+//! The block scenes are generated here (a structured 40 mm block, written as Abaqus `.inp`
+//! and read back through the normal scene path), so the map needs no extra fixtures.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use bs_cli::check::Prepared;
+use bs_cli::scene::{Algorithm, ElementChoice};
+use bs_cli::study::{ContactChoice, Failure, Outcome, Variant, difference};
+use bs_dr::SolveError;
+use bs_mesh::io::Fields;
+use bs_mesh::{Element, Mesh, Point3, TriSurface};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use crate::plot::{self, Figure, err};
+use crate::validate::{read_reference, root};
+
+/// How a run ended.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Verdict {
+    /// A valid result.
+    Converged,
+    /// Stopped with a typed error before writing anything: the guard's name.
+    Guard(String),
+    /// A result that is not valid (the reason), returned as if it were.
+    Silent(String),
+    /// Not run by us (CalculiX's stored outcome is shown as text).
+    External(String),
+}
+
+/// One cell of the map.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cell {
+    /// Row (experiment).
+    pub row: String,
+    /// Parameter value as shown.
+    pub value: String,
+    /// Outcome.
+    pub verdict: Verdict,
+    /// DR steps (0 if stopped before or not ours).
+    pub steps: usize,
+    /// A number worth seeing (deviation from the row's reference, step of the guard, …).
+    pub note: String,
+}
+
+/// The short name of a solver error.
+pub fn guard_name(e: &SolveError) -> String {
+    let s = format!("{e:?}");
+    s.split([' ', '{', '(']).next().unwrap_or("error").to_string()
+}
+
+/// Classifies a variant's result. A returned result must be finite, have no inverted
+/// element and leave no slave outside the skull beyond the tolerance; otherwise the run
+/// failed silently.
+pub fn classify(result: &Result<Outcome, Failure>, tolerance: f64) -> Verdict {
+    match result {
+        Err(Failure::Solve(e)) => Verdict::Guard(guard_name(e)),
+        Err(Failure::Check(_)) => Verdict::Guard("ContactCheck".into()),
+        Err(Failure::Setup(_)) => Verdict::Guard("SceneCheck".into()),
+        Ok(o) => {
+            if o.displacements.iter().any(|u| !u.iter().all(|x| x.is_finite())) {
+                Verdict::Silent("non-finite displacement".into())
+            } else if o.min_volume_ratio.is_nan() || o.min_volume_ratio <= 0.0 {
+                Verdict::Silent(format!("inverted element (J = {:.2e})", o.min_volume_ratio))
+            } else if o.max_penetration_after > tolerance {
+                Verdict::Silent(format!("node outside by {:.2e}", o.max_penetration_after))
+            } else {
+                Verdict::Converged
+            }
+        }
+    }
+}
+
+/// A structured block [0, L]³ of n³ cells, hexahedra or each split into 6 tetrahedra,
+/// with node sets BOTTOM (z = 0), TOP (z = L) and PATCH (top nodes within L/4 of the top
+/// centre in x and y).
+pub fn block(n: usize, l: f64, tets: bool) -> Mesh {
+    let idx = |i: usize, j: usize, k: usize| (k * (n + 1) + j) * (n + 1) + i;
+    let h = l / n as f64;
+    let mut nodes = Vec::new();
+    for k in 0..=n {
+        for j in 0..=n {
+            for i in 0..=n {
+                nodes.push(Point3::new(i as f64 * h, j as f64 * h, k as f64 * h));
+            }
+        }
+    }
+    let mut elements = Vec::new();
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let v = [
+                    idx(i, j, k),
+                    idx(i + 1, j, k),
+                    idx(i + 1, j + 1, k),
+                    idx(i, j + 1, k),
+                    idx(i, j, k + 1),
+                    idx(i + 1, j, k + 1),
+                    idx(i + 1, j + 1, k + 1),
+                    idx(i, j + 1, k + 1),
+                ];
+                if tets {
+                    // Six positively oriented tetrahedra around the diagonal 0–6.
+                    for t in [
+                        [0, 1, 2, 6],
+                        [0, 2, 3, 6],
+                        [0, 3, 7, 6],
+                        [0, 7, 4, 6],
+                        [0, 4, 5, 6],
+                        [0, 5, 1, 6],
+                    ] {
+                        elements.push(Element::tet4(t.map(|q| v[q])));
+                    }
+                } else {
+                    elements.push(Element::hex8(v));
+                }
+            }
+        }
+    }
+    let mut mesh = Mesh::new(nodes, elements);
+    let top: Vec<usize> = (0..mesh.nodes.len()).filter(|&i| mesh.nodes[i].z >= l - 1e-9).collect();
+    let patch: Vec<usize> = top
+        .iter()
+        .copied()
+        .filter(|&i| {
+            let p = mesh.nodes[i];
+            (p.x - l / 2.0).abs() <= l / 4.0 + 1e-9 && (p.y - l / 2.0).abs() <= l / 4.0 + 1e-9
+        })
+        .collect();
+    let bottom: Vec<usize> = (0..mesh.nodes.len()).filter(|&i| mesh.nodes[i].z <= 1e-9).collect();
+    mesh.node_sets.insert("BOTTOM".into(), bottom);
+    mesh.node_sets.insert("TOP".into(), top);
+    mesh.node_sets.insert("PATCH".into(), patch);
+    mesh.element_sets.insert("BLOCK".into(), (0..mesh.elements.len()).collect());
+    mesh
+}
+
+/// A faceted box around [lo, hi]: the convex hull of its corners and `per_face` random
+/// points on each face, each bumped outward by up to `bump`. The faces become irregular,
+/// often skinny triangles meeting at sharp 90° box edges: where the closest skull node to
+/// a penetrating brain node is often not a vertex of the face it penetrates (the paper's
+/// Fig. 2c in three dimensions).
+pub fn faceted_box(
+    lo: Point3<f64>,
+    hi: Point3<f64>,
+    per_face: usize,
+    bump: f64,
+    seed: u64,
+) -> TriSurface {
+    let mut rng = bs_contact::shapes::Rng::new(seed);
+    let mut points: Vec<Point3<f64>> = (0..8)
+        .map(|i| {
+            Point3::new(
+                if i & 1 == 0 { lo.x } else { hi.x },
+                if i & 2 == 0 { lo.y } else { hi.y },
+                if i & 4 == 0 { lo.z } else { hi.z },
+            )
+        })
+        .collect();
+    for axis in 0..3 {
+        for high in [false, true] {
+            for _ in 0..per_face {
+                let mut p = Point3::origin();
+                for k in 0..3 {
+                    p[k] =
+                        rng.range(lo[k] + 0.02 * (hi[k] - lo[k]), hi[k] - 0.02 * (hi[k] - lo[k]));
+                }
+                let b = rng.range(0.1 * bump, bump);
+                p[axis] = if high { hi[axis] + b } else { lo[axis] - b };
+                points.push(p);
+            }
+        }
+    }
+    bs_contact::shapes::convex_hull(&points)
+}
+
+/// Writes `mesh` (and `skull`) with a scene into `dir` and loads it the way `run` does.
+fn scene(
+    dir: &Path,
+    name: &str,
+    mesh: &Mesh,
+    skull: Option<&TriSurface>,
+    body: &str,
+) -> Result<Prepared, String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let inp = dir.join(format!("{name}.inp"));
+    bs_mesh::io::write_mesh(&inp, mesh, &Fields::default()).map_err(|e| e.to_string())?;
+    let mut toml = format!(
+        "units = \"mm\"\n[mesh]\nfile = \"{name}.inp\"\n[[region]]\nelset = \"BLOCK\"\nmaterial = \
+         {{ model = \"neo-hookean\", youngs_modulus = 3000.0, poisson_ratio = 0.49, density = \
+         1000.0 }}\n[[boundary]]\nnset = \"BOTTOM\"\nfix = [\"x\", \"y\", \"z\"]\n{body}"
+    );
+    if let Some(s) = skull {
+        let off = dir.join(format!("{name}-skull.off"));
+        bs_mesh::io::write_surface(&off, s).map_err(|e| e.to_string())?;
+        let _ = write!(toml, "[contact]\nskull = \"{name}-skull.off\"\nalgorithm = \"paper\"\n");
+    }
+    toml.push_str("[solver]\nkind = \"dr\"\ntolerance = 1e-3\n");
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, toml).map_err(|e| format!("{}: {e}", path.display()))?;
+    Prepared::load(&path).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Block side (mm) and cells per side of the generated scenes.
+const SIDE: f64 = 40.0;
+const CELLS: usize = 8;
+
+/// Indentation of the block's top patch by `depth` mm, bottom fixed, no skull.
+fn indentation(dir: &Path, tets: bool, depth: f64) -> Result<Prepared, String> {
+    let name = if tets { "indent-t4" } else { "indent-h8" };
+    let body = format!(
+        "[[boundary]]\nnset = \"PATCH\"\ndisplacement = {{ x = 0.0, y = 0.0, z = {} }}\n",
+        -depth
+    );
+    scene(dir, name, &block(CELLS, SIDE, tets), None, &body)
+}
+
+/// The tetrahedral block compressed by 20 % (top pushed down in z, free in x and y) inside
+/// a faceted box skull 0.4–0.7 mm away from its sides: the sides bulge into its faces.
+fn boxed(dir: &Path) -> Result<Prepared, String> {
+    let g = 0.4;
+    let skull = faceted_box(
+        Point3::new(-g, -g, -2.0),
+        Point3::new(SIDE + g, SIDE + g, SIDE + 2.0),
+        12,
+        0.3,
+        11,
+    );
+    let body = "[[boundary]]\nnset = \"TOP\"\ndisplacement = { z = -8.0 }\n";
+    scene(dir, "boxed", &block(CELLS, SIDE, true), Some(&skull), body)
+}
+
+/// Which rows to run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scope {
+    /// The block rows (seconds; also a test).
+    Quick,
+    /// Everything, including the ellipsoid loads (minutes, release).
+    Full,
+}
+
+fn temp_dir() -> PathBuf {
+    std::env::temp_dir().join(format!("brainshift-stability-{}", std::process::id()))
+}
+
+fn cell(row: &str, value: String, r: &Result<Outcome, Failure>, tol: f64, note: String) -> Cell {
+    let verdict = classify(r, tol);
+    let steps = r.as_ref().map_or(0, |o| o.steps);
+    let note = match (r, note.is_empty()) {
+        (Err(Failure::Solve(e)), _) => step_of(e).map_or(note.clone(), |s| format!("at step {s}")),
+        _ => note,
+    };
+    let c = Cell { row: row.into(), value, verdict, steps, note };
+    println!(
+        "{:<34} {:<10} {:<28} {:>7} steps  {}",
+        c.row,
+        c.value,
+        verdict_text(&c.verdict),
+        c.steps,
+        c.note
+    );
+    c
+}
+
+fn step_of(e: &SolveError) -> Option<usize> {
+    match e {
+        SolveError::NotFinite { step }
+        | SolveError::ElementInverted { step, .. }
+        | SolveError::Unstable { step, .. }
+        | SolveError::Diverged { step, .. } => Some(*step),
+        SolveError::NoConvergence { steps, .. } => Some(*steps),
+        _ => None,
+    }
+}
+
+/// The verdict in words.
+pub fn verdict_text(v: &Verdict) -> String {
+    match v {
+        Verdict::Converged => "converged".into(),
+        Verdict::Guard(g) => format!("guard: {g}"),
+        Verdict::Silent(why) => format!("SILENT: {why}"),
+        Verdict::External(s) => s.clone(),
+    }
+}
+
+/// Runs the map's rows.
+pub fn run(scope: Scope) -> Result<Vec<Cell>, String> {
+    let dir = temp_dir();
+    let result = rows(scope, &dir);
+    let _ = std::fs::remove_dir_all(&dir);
+    result
+}
+
+fn rows(scope: Scope, dir: &Path) -> Result<Vec<Cell>, String> {
+    let mut cells = Vec::new();
+    let tol = 1e-3;
+    let t4 = indentation(dir, true, 8.0)?;
+
+    // Time step: the element bound is a lower bound of the critical step (on this mesh the
+    // true one is ≈1.6× it), so 0.5–1.25 must converge and ≥ 2 must be stopped.
+    let row = "time step / element-bound critical";
+    for f in [0.5, 0.8, 1.0, 1.25, 1.5, 2.0, 2.5, 3.0] {
+        let v = Variant {
+            element: Some(ElementChoice::T4anp),
+            step_fraction: Some(f),
+            ..Variant::default()
+        };
+        cells.push(cell(row, format!("{f}x"), &v.solve(&t4), tol, String::new()));
+    }
+
+    // Growing indentation of a 40 mm block until an element inverts.
+    let row = "indentation depth (40 mm block)";
+    for depth in [8.0, 16.0, 24.0, 30.0, 34.0] {
+        let p = match indentation(dir, true, depth) {
+            Ok(p) => p,
+            // `check` refuses the scene (e.g. the unit sanity check): a guard too.
+            Err(e) => {
+                let r = Err(Failure::Setup(e));
+                cells.push(cell(row, format!("{depth} mm"), &r, tol, String::new()));
+                continue;
+            }
+        };
+        let v = Variant { element: Some(ElementChoice::T4anp), ..Variant::default() };
+        let r = v.solve(&p);
+        let note = r.as_ref().map_or(String::new(), |o| format!("min J {:.2}", o.min_volume_ratio));
+        cells.push(cell(row, format!("{depth} mm"), &r, tol, note));
+    }
+
+    // Sharp skull corners: the paper's handler with and without the §3.2 lists, brute
+    // force as the reference.
+    let boxed = boxed(dir)?;
+    let row = "sharp corners (box skull)";
+    let brute = Variant {
+        contact: Some(ContactChoice::Handler(Algorithm::BruteForce)),
+        ..Variant::default()
+    }
+    .solve(&boxed);
+    let brute_u = brute.as_ref().ok().map(|o| o.displacements.clone());
+    let in_contact = |r: &Result<Outcome, Failure>| {
+        r.as_ref().map_or(String::new(), |o| format!("{} in contact", o.nodes_in_contact))
+    };
+    cells.push(cell(row, "brute force".into(), &brute, tol, in_contact(&brute)));
+    for (label, lists) in [("lists on", true), ("lists off", false)] {
+        let v = Variant { additional_lists: Some(lists), ..Variant::default() };
+        let r = v.solve(&boxed);
+        let note = match (&r, &brute_u) {
+            (Ok(o), Some(b)) => {
+                format!("max |u - brute| {:.1e} mm", difference(&o.displacements, b, None).1)
+            }
+            _ => String::new(),
+        };
+        let mut c = cell(row, label.into(), &r, tol, note);
+        // A handler solves the same discrete problem as brute force: a result farther than
+        // 10× the tolerance from brute force's is a missed penetration corrected to the
+        // wrong place, returned as if right.
+        if let (Ok(o), Some(b), Verdict::Converged) = (&r, &brute_u, &c.verdict) {
+            let dev = difference(&o.displacements, b, None).1;
+            if dev > 10.0 * tol {
+                c.verdict = Verdict::Silent(format!("differs from brute force by {dev:.2e}"));
+                println!("  -> {}", verdict_text(&c.verdict));
+            }
+        }
+        cells.push(c);
+    }
+
+    if scope == Scope::Quick {
+        return Ok(cells);
+    }
+
+    // Poisson's ratio: T4 locks, T4ANP does not; deviation of T4 from T4ANP recorded.
+    for element in [ElementChoice::T4, ElementChoice::T4anp] {
+        let row =
+            format!("Poisson ratio, {}", if element == ElementChoice::T4 { "T4" } else { "T4ANP" });
+        for nu in [0.45, 0.49, 0.495, 0.499, 0.4999] {
+            let v =
+                Variant { element: Some(element), poisson_ratio: Some(nu), ..Variant::default() };
+            let r = v.solve(&t4);
+            let note = if element == ElementChoice::T4 {
+                let anp = Variant { element: Some(ElementChoice::T4anp), ..v.clone() }.solve(&t4);
+                match (&r, &anp) {
+                    (Ok(a), Ok(b)) => {
+                        format!(
+                            "mean |u - T4ANP| {:.2} mm",
+                            difference(&a.displacements, &b.displacements, None).0
+                        )
+                    }
+                    _ => String::new(),
+                }
+            } else {
+                String::new()
+            };
+            cells.push(cell(&row, format!("{nu}"), &r, tol, note));
+        }
+    }
+
+    // H8 hourglass control: the default coefficient against none.
+    let h8 = indentation(dir, false, 8.0)?;
+    let row = "H8 hourglass coefficient";
+    let default = bs_dr::ModelOptions::default().hourglass;
+    let reference = Variant::default().solve(&h8);
+    for (label, k) in [("0 (off)", 0.0), ("default/10", default / 10.0), ("default", default)] {
+        let v = Variant { hourglass: Some(k), ..Variant::default() };
+        let r = v.solve(&h8);
+        let note = match (&r, &reference) {
+            (Ok(a), Ok(b)) => format!(
+                "max |u - default| {:.1e} mm",
+                difference(&a.displacements, &b.displacements, None).1
+            ),
+            _ => String::new(),
+        };
+        cells.push(cell(row, label.into(), &r, tol, note));
+    }
+
+    // The paper's ellipsoid, pushed 10–40 mm, with CalculiX's stored outcome beside it.
+    let ell =
+        Prepared::load(&root().join("fixtures/ellipsoid/scene.toml")).map_err(|e| e.to_string())?;
+    let row = "ellipsoid load, DR + kinematic";
+    for f in [1.0, 2.0, 3.0, 4.0] {
+        let v = Variant { load_factor: Some(f), ..Variant::default() };
+        let r = v.solve(&ell);
+        let note =
+            r.as_ref().map_or(String::new(), |o| format!("{} in contact", o.nodes_in_contact));
+        cells.push(cell(row, format!("{} mm", 10.0 * f), &r, tol, note));
+    }
+    let dir = root().join("fixtures/ellipsoid/reference");
+    let row = "ellipsoid load, CalculiX K=10";
+    for (load, tag) in [("10 mm", "ccx-k10"), ("40 mm", "ccx-40mm-k10")] {
+        let Some(r) = read_reference(&dir, tag)? else { continue };
+        let done = r.meta["converged"] == serde_json::Value::Bool(true);
+        let frac = r.meta["load_fraction_reached"].as_f64().unwrap_or(f64::NAN);
+        let text = if done {
+            "converged".to_string()
+        } else {
+            format!("failed at {:.0}% load", 100.0 * frac)
+        };
+        let c = Cell {
+            row: row.into(),
+            value: load.into(),
+            verdict: Verdict::External(text),
+            steps: 0,
+            note: r.meta["message"].as_str().unwrap_or("").to_string(),
+        };
+        println!("{:<34} {:<10} {}", c.row, c.value, verdict_text(&c.verdict));
+        cells.push(c);
+    }
+    Ok(cells)
+}
+
+/// The map: one row per experiment, one cell per run, coloured by outcome.
+struct Map<'a> {
+    cells: &'a [Cell],
+}
+
+impl Figure for Map<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
+        let mut rows: Vec<&str> = Vec::new();
+        for c in self.cells {
+            if !rows.contains(&c.row.as_str()) {
+                rows.push(&c.row);
+            }
+        }
+        let cols = rows
+            .iter()
+            .map(|r| self.cells.iter().filter(|c| c.row == *r).count())
+            .max()
+            .unwrap_or(1);
+        let (w, h) = root.dim_in_pixel();
+        let (left, top) = (250i32, 50i32);
+        let cw = (w as i32 - left - 10) / cols as i32;
+        let rh = ((h as i32 - top - 40) / rows.len().max(1) as i32).min(70);
+        root.draw(&Text::new(
+            "Stability map: one run per cell (green converged, orange stopped by a guard, red failed silently)",
+            (10, 15),
+            ("sans-serif", 17),
+        ))
+        .map_err(err)?;
+        for (ri, r) in rows.iter().enumerate() {
+            let y = top + ri as i32 * rh;
+            root.draw(&Text::new(r.to_string(), (8, y + rh / 2 - 7), ("sans-serif", 14)))
+                .map_err(err)?;
+            for (ci, c) in self.cells.iter().filter(|c| c.row == *r).enumerate() {
+                let x = left + ci as i32 * cw;
+                let color = match c.verdict {
+                    Verdict::Converged => RGBColor(120, 200, 120),
+                    Verdict::Guard(_) => RGBColor(240, 170, 80),
+                    Verdict::Silent(_) => RGBColor(220, 60, 60),
+                    Verdict::External(ref s) if s == "converged" => RGBColor(170, 220, 170),
+                    Verdict::External(_) => RGBColor(200, 200, 200),
+                };
+                root.draw(&Rectangle::new(
+                    [(x + 2, y + 2), (x + cw - 2, y + rh - 2)],
+                    color.filled(),
+                ))
+                .map_err(err)?;
+                let outcome = match &c.verdict {
+                    Verdict::Converged => format!("ok, {} steps", c.steps),
+                    other => verdict_text(other).replace("guard: ", ""),
+                };
+                for (k, line) in [c.value.clone(), outcome, c.note.clone()].iter().enumerate() {
+                    let mut line = line.clone();
+                    if line.chars().count() > 24 {
+                        line = line.chars().take(23).collect::<String>() + "…";
+                    }
+                    root.draw(&Text::new(line, (x + 6, y + 6 + 18 * k as i32), ("sans-serif", 13)))
+                        .map_err(err)?;
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The cells as CSV.
+pub fn csv(cells: &[Cell]) -> String {
+    let mut s = String::from("row,value,outcome,steps,note\n");
+    for c in cells {
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{}",
+            c.row,
+            c.value,
+            verdict_text(&c.verdict).replace(',', ";"),
+            c.steps,
+            c.note.replace(',', ";")
+        );
+    }
+    s
+}
+
+/// The cells as a Markdown table.
+pub fn markdown(cells: &[Cell]) -> String {
+    let mut s =
+        String::from("| experiment | value | outcome | steps | note |\n|---|---|---|---:|---|\n");
+    for c in cells {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} |",
+            c.row,
+            c.value,
+            verdict_text(&c.verdict),
+            c.steps,
+            c.note
+        );
+    }
+    s
+}
+
+/// `cargo xtask stability [--quick]`.
+pub fn main(args: &[String]) -> Result<(), String> {
+    let scope = match args {
+        [] => Scope::Full,
+        [q] if q == "--quick" => Scope::Quick,
+        _ => return Err("usage: cargo xtask stability [--quick]".into()),
+    };
+    let cells = run(scope)?;
+    let silent = cells.iter().filter(|c| matches!(c.verdict, Verdict::Silent(_))).count();
+    if scope == Scope::Full {
+        let stem = root().join("docs/charts/stability-map");
+        std::fs::write(stem.with_extension("csv"), csv(&cells)).map_err(|e| e.to_string())?;
+        plot::save(&Map { cells: &cells }, &stem, (1500, 640))?;
+        crate::chart::replace_block(&root().join("docs/stability.md"), "map", &markdown(&cells))?;
+        println!("map written to {}", stem.display());
+    }
+    println!("{} runs, {silent} failed silently", cells.len());
+    if silent > 0 {
+        return Err(format!("{silent} run(s) failed silently"));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The quick rows: every run either converges or is stopped by a guard, never returns
+    /// an invalid result; and the guards are the expected ones where theory says so.
+    #[test]
+    fn quick_rows_never_fail_silently() {
+        let cells = run(Scope::Quick).unwrap();
+        let silent: Vec<_> =
+            cells.iter().filter(|c| matches!(c.verdict, Verdict::Silent(_))).collect();
+        assert!(silent.is_empty(), "{silent:#?}");
+        let get = |row: &str, value: &str| {
+            cells
+                .iter()
+                .find(|c| c.row.starts_with(row) && c.value == value)
+                .map(|c| c.verdict.clone())
+        };
+        // Below the element bound DR is stable; at 3× it (≈ 1.9× the true critical step on
+        // this mesh) it must be stopped as unstable.
+        assert_eq!(get("time step", "0.5x"), Some(Verdict::Converged));
+        assert_eq!(get("time step", "0.8x"), Some(Verdict::Converged));
+        assert!(
+            matches!(get("time step", "3x"), Some(Verdict::Guard(g)) if g != "ContactCheck"),
+            "{cells:#?}"
+        );
+        // A 40 mm block indented 34 mm by a 20 mm patch cannot keep its elements positive.
+        assert!(
+            matches!(get("indentation", "34 mm"), Some(Verdict::Guard(g)) if g == "ElementInverted"),
+            "{cells:#?}"
+        );
+        assert_eq!(get("indentation", "8 mm"), Some(Verdict::Converged));
+        // With the lists the paper handler finds every penetration at the box's corners.
+        assert_eq!(get("sharp corners", "lists on"), Some(Verdict::Converged));
+        assert_eq!(get("sharp corners", "brute force"), Some(Verdict::Converged));
+        // Without them it misplaces nodes; that must be stopped (here the misplaced nodes
+        // invert an element), never returned.
+        assert!(matches!(get("sharp corners", "lists off"), Some(Verdict::Guard(_))), "{cells:#?}");
+    }
+
+    /// The generated geometry: the block's volume and orientation, and the box skull is a
+    /// valid closed outward master surface.
+    #[test]
+    fn generated_scenes_are_valid() {
+        for tets in [true, false] {
+            let m = block(4, 2.0, tets);
+            assert!(m.validate().first_error().is_none());
+            let vol: f64 = (0..m.elements.len()).map(|e| m.element_volume(e)).sum();
+            assert!((vol - 8.0).abs() < 1e-12, "{vol}");
+            assert_eq!(m.node_sets["PATCH"].len(), 9);
+        }
+        let s = faceted_box(Point3::new(0.0, 0.0, 0.0), Point3::new(1.0, 2.0, 3.0), 12, 0.01, 3);
+        assert!(bs_contact::MasterSurface::new(&s).is_ok());
+        // It encloses the box (the face points are bumped outward), and not much more:
+        // box volume 6 ≤ hull volume ≤ the box grown by the bump on every side.
+        let vol: f64 = s
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| s.vertices[i].coords);
+                a.dot(&b.cross(&c)) / 6.0
+            })
+            .sum();
+        assert!((6.0 - 1e-12..=1.02 * 2.02 * 3.02).contains(&vol), "{vol}");
+        assert!(s.vertices.len() > 8 + 6 * 4, "{}", s.vertices.len());
+    }
+}
