@@ -17,11 +17,27 @@ use std::path::{Path, PathBuf};
 use bs_cli::check::Prepared;
 use bs_cli::scene::{Algorithm, ElementChoice, SolverKind};
 use bs_cli::study::{ContactChoice, Variant, difference};
-use bs_mesh::{Mesh, TetLocator, Vector3, transfer};
+use bs_mesh::quality::mean_edge_length;
+use bs_mesh::{TetLocator, Vector3, transfer};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use crate::plot::{self, Figure, PALETTE, err};
+
+/// Colours of the sweep lines: the Okabe–Ito palette without black (CalculiX's) and a few
+/// darker shades, so up to ten series stay apart.
+const SERIES_COLORS: [RGBColor; 10] = [
+    PALETTE[0],
+    PALETTE[1],
+    PALETTE[2],
+    PALETTE[3],
+    PALETTE[4],
+    PALETTE[5],
+    RGBColor(0, 70, 110),
+    RGBColor(140, 60, 0),
+    RGBColor(0, 100, 70),
+    RGBColor(150, 150, 0),
+];
 use crate::validate::{read_reference, root};
 
 /// DR tolerance of the reference solution of each case (mm).
@@ -52,6 +68,8 @@ pub struct ChartPoint {
     pub nodes: usize,
     /// Mean element edge of the mesh (mm).
     pub mean_edge: f64,
+    /// Bounding-box diagonal of the mesh (mm).
+    pub diagonal: f64,
     /// Wall time: setup and solve (s).
     pub seconds: f64,
     /// DR steps or Newton iterations (0 for CalculiX).
@@ -86,7 +104,7 @@ impl ChartPoint {
 /// A case: its mesh levels from coarse to fine (scene files), and which level CalculiX's
 /// stored references were computed on.
 #[derive(Debug, Clone)]
-struct Case {
+pub struct Case {
     name: &'static str,
     levels: Vec<(&'static str, &'static str)>,
     ccx_level: &'static str,
@@ -119,22 +137,6 @@ fn cases() -> Vec<Case> {
     ]
 }
 
-/// Mean edge length over the elements' edges (each element counts its own edges).
-pub fn mean_edge(mesh: &Mesh) -> f64 {
-    let (mut sum, mut n) = (0.0, 0usize);
-    for el in &mesh.elements {
-        let v = el.nodes();
-        if v.len() != 4 {
-            continue;
-        }
-        for (a, b) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
-            sum += (mesh.nodes[v[a]] - mesh.nodes[v[b]]).norm();
-            n += 1;
-        }
-    }
-    if n == 0 { f64::NAN } else { sum / n as f64 }
-}
-
 /// A level of a case with the reference carried onto its nodes.
 struct Level {
     label: &'static str,
@@ -143,6 +145,11 @@ struct Level {
     mean_edge: f64,
     /// CalculiX K = 10 on this level, where stored.
     ccx: Option<Vec<Vector3<f64>>>,
+}
+
+/// Bounding-box diagonal of a scene's mesh (mesh units: mm for every case here).
+fn diagonal(p: &Prepared) -> f64 {
+    p.mesh.bounding_box().map_or(f64::NAN, |(a, b)| (b - a).norm())
 }
 
 fn element_name(e: ElementChoice) -> &'static str {
@@ -171,6 +178,7 @@ fn measure(case: &str, series: &str, level: &Level, v: &Variant) -> Result<Chart
         tolerance: q.scene.solver.tolerance,
         nodes: level.p.mesh.nodes.len(),
         mean_edge: level.mean_edge,
+        diagonal: diagonal(&level.p),
         seconds: o.setup_seconds + o.solve_seconds,
         steps: o.steps,
         mean_error: mean,
@@ -209,7 +217,7 @@ fn levels_with_reference(
         .map(|(label, p)| Level {
             label,
             reference: transfer(&locator, &o.displacements, &p.mesh.nodes),
-            mean_edge: mean_edge(&p.mesh),
+            mean_edge: mean_edge_length(&p.mesh),
             p: p.clone(),
             ccx: None,
         })
@@ -224,7 +232,8 @@ fn levels_with_reference(
         handler: q.scene.contact.as_ref().map_or("none", |c| c.algorithm.name()).into(),
         tolerance: q.scene.solver.tolerance,
         nodes: finest.mesh.nodes.len(),
-        mean_edge: mean_edge(&finest.mesh),
+        mean_edge: mean_edge_length(&finest.mesh),
+        diagonal: diagonal(finest),
         seconds: o.setup_seconds + o.solve_seconds,
         steps: o.steps,
         mean_error: 0.0,
@@ -262,9 +271,9 @@ fn contact_sweep(case: &Case) -> Result<Vec<ChartPoint>, String> {
             }
         }
     }
-    // Contact handlers on the middle level (T4ANP, 1e-3 mm): the scene's own handler is
-    // already in the sweep.
-    let middle = &levels[levels.len() / 2];
+    // Contact handlers on the coarsest level (T4ANP, 1e-3 mm; brute force costs minutes
+    // even there): the scene's own handler is already in the sweep.
+    let middle = &levels[0];
     let own = middle.p.scene.contact.as_ref().map(|c| c.algorithm);
     for a in [Algorithm::Paper, Algorithm::Coherent, Algorithm::Parry, Algorithm::BruteForce] {
         if Some(a) == own || (a == Algorithm::BruteForce && !case.brute_force) {
@@ -309,6 +318,7 @@ fn calculix_points(
             tolerance: f64::NAN,
             nodes: level.p.mesh.nodes.len(),
             mean_edge: level.mean_edge,
+            diagonal: diagonal(&level.p),
             seconds: r.meta["wall_seconds"].as_f64().unwrap_or(f64::NAN),
             steps: 0,
             mean_error: mean,
@@ -419,7 +429,7 @@ impl Figure for SpeedAccuracy<'_> {
             .configure_mesh()
             .x_desc("wall time, setup + solve (s), 2 threads")
             .y_desc("mean nodal error vs finest solution (mm)")
-            .x_label_formatter(&|x| format!("{x:.3}"))
+            .x_label_formatter(&|x| if *x >= 1.0 { format!("{x:.0}") } else { format!("{x:.1}") })
             .y_label_formatter(&|y| format!("{y:.0e}"))
             .draw()
             .map_err(err)?;
@@ -440,7 +450,11 @@ impl Figure for SpeedAccuracy<'_> {
             }
         }
         for (k, name) in series.iter().enumerate() {
-            let color = if *name == "CalculiX" { PALETTE[6] } else { PALETTE[k % 6] };
+            let color = match *name {
+                "CalculiX" => BLACK,
+                "handlers" => RGBColor(120, 60, 160),
+                _ => SERIES_COLORS[k % SERIES_COLORS.len()],
+            };
             let mut pts: Vec<&&ChartPoint> = shown.iter().filter(|p| p.series == *name).collect();
             pts.sort_by(|a, b| a.seconds.total_cmp(&b.seconds));
             let xy: Vec<(f64, f64)> = pts.iter().map(|p| (p.seconds, p.mean_error)).collect();
@@ -459,7 +473,13 @@ impl Figure for SpeedAccuracy<'_> {
                 }))
                 .map_err(err)?
                 .label(*name)
-                .legend(move |(x, y)| Circle::new((x + 8, y), 4, color.filled()));
+                .legend(move |(x, y)| {
+                    if solid {
+                        Cross::new((x + 8, y), 5, color.stroke_width(2)).into_dyn()
+                    } else {
+                        Circle::new((x + 8, y), 4, color.filled()).into_dyn()
+                    }
+                });
             if !lines {
                 chart
                     .draw_series(pts.iter().map(|p| {
@@ -468,7 +488,9 @@ impl Figure for SpeedAccuracy<'_> {
                         } else {
                             p.handler.clone()
                         };
-                        Text::new(text, (p.seconds * 1.08, p.mean_error), ("sans-serif", 13))
+                        // CalculiX's two slopes land on one spot: K=1 below, K=10 above.
+                        let dy = if p.handler.ends_with("K=1") { 0.8 } else { 1.1 };
+                        Text::new(text, (p.seconds * 1.08, p.mean_error * dy), ("sans-serif", 13))
                     }))
                     .map_err(err)?;
             }
@@ -496,7 +518,7 @@ impl Figure for SpeedAccuracy<'_> {
             .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK));
         chart
             .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
+            .position(SeriesLabelPosition::LowerLeft)
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK)
             .label_font(("sans-serif", 13))
@@ -619,6 +641,7 @@ fn advice_json(all: &[(String, Vec<ChartPoint>)]) -> serde_json::Value {
         cases.push(serde_json::json!({
             "case": case,
             "reference_mean_edge_mm": r.mean_edge,
+            "diagonal_mm": r.diagonal,
             "reference_seconds": r.seconds,
             "targets": targets,
         }));
@@ -651,36 +674,97 @@ fn charts_dir() -> PathBuf {
     root().join("docs/charts")
 }
 
-/// `cargo xtask chart [--case NAME]`.
+/// Reads points back from a CSV written by [`csv`]; the mesh diagonal (not stored) is
+/// taken from the case's scenes.
+pub fn read_csv(path: &Path, case: &Case) -> Result<Vec<ChartPoint>, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("{}: {e} (run `cargo xtask chart` first)", path.display()))?;
+    let mut diagonals = std::collections::HashMap::new();
+    for (label, scene) in &case.levels {
+        let p = Prepared::load(&root().join(scene)).map_err(|e| format!("{scene}: {e}"))?;
+        diagonals.insert(label.to_string(), diagonal(&p));
+    }
+    let mut points = Vec::new();
+    for (n, line) in text.lines().enumerate().skip(1) {
+        let bad = |what: &str| format!("{}:{}: {what}", path.display(), n + 1);
+        let f: Vec<&str> = line.split(',').collect();
+        if f.len() != 15 {
+            return Err(bad("expected 15 columns"));
+        }
+        let num = |i: usize| {
+            f[i].parse::<f64>().map_err(|_| bad(&format!("column {} is not a number", i + 1)))
+        };
+        let int = |i: usize| {
+            f[i].parse::<usize>().map_err(|_| bad(&format!("column {} is not a count", i + 1)))
+        };
+        points.push(ChartPoint {
+            case: f[0].into(),
+            series: f[1].into(),
+            level: f[2].into(),
+            element: f[3].into(),
+            solver: f[4].into(),
+            handler: f[5].into(),
+            tolerance: num(6)?,
+            nodes: int(7)?,
+            mean_edge: num(8)?,
+            diagonal: diagonals.get(f[2]).copied().unwrap_or(f64::NAN),
+            seconds: num(9)?,
+            steps: int(10)?,
+            mean_error: num(11)?,
+            max_error: num(12)?,
+            mean_error_ccx: if f[13].is_empty() { None } else { Some(num(13)?) },
+            is_reference: f[14] == "true",
+        });
+    }
+    Ok(points)
+}
+
+/// `cargo xtask chart [--case NAME] [--replot]`.
 pub fn main(args: &[String]) -> Result<(), String> {
-    let only = match args {
-        [] => None,
-        [flag, name] if flag == "--case" => Some(name.clone()),
-        _ => return Err("usage: cargo xtask chart [--case ellipsoid|mni152]".into()),
-    };
+    let mut only = None;
+    let mut replot = false;
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--case" => only = Some(it.next().ok_or("--case needs a name")?.clone()),
+            "--replot" => replot = true,
+            _ => return Err("usage: cargo xtask chart [--case ellipsoid|mni152] [--replot]".into()),
+        }
+    }
     let selected: Vec<Case> =
         cases().into_iter().filter(|c| only.as_deref().is_none_or(|n| n == c.name)).collect();
     if selected.is_empty() {
         return Err(format!("no case named {}", only.unwrap_or_default()));
     }
+    // Solves (or, with --replot, re-reads) one sweep and draws it.
+    let sweep = |stem: &Path,
+                 case: &Case,
+                 title: String,
+                 solve: &dyn Fn(&Case) -> Result<Vec<ChartPoint>, String>| {
+        let points = if replot {
+            read_csv(&stem.with_extension("csv"), case)?
+        } else {
+            let points = solve(case)?;
+            write(&stem.with_extension("csv"), &csv(&points))?;
+            points
+        };
+        plot::save(&SpeedAccuracy { title, points: &points }, stem, (1100, 750))?;
+        Ok::<_, String>(points)
+    };
     let mut all = Vec::new();
     let mut findings = String::new();
     for case in &selected {
-        let points = contact_sweep(case)?;
         let stem = charts_dir().join(format!("speed-accuracy-{}", case.name));
-        write(&stem.with_extension("csv"), &csv(&points))?;
         let title = format!("{}: speed vs accuracy (DR + kinematic contact)", case.name);
-        plot::save(&SpeedAccuracy { title, points: &points }, &stem, (1100, 750))?;
+        let points = sweep(&stem, case, title, &contact_sweep)?;
         findings.push_str(&findings_markdown(case.name, &points));
         findings.push('\n');
         all.push((case.name.to_string(), points));
     }
     if let Some(ell) = selected.iter().find(|c| c.name == "ellipsoid") {
-        let points = newton_sweep(ell)?;
         let stem = charts_dir().join("dr-vs-newton-ellipsoid");
-        write(&stem.with_extension("csv"), &csv(&points))?;
         let title = "ellipsoid without skull: DR vs Newton (T4)".to_string();
-        plot::save(&SpeedAccuracy { title, points: &points }, &stem, (1100, 750))?;
+        let points = sweep(&stem, ell, title, &newton_sweep)?;
         findings.push_str(&findings_markdown("ellipsoid without skull (DR vs Newton)", &points));
     }
     if only.is_none() {
@@ -709,6 +793,7 @@ mod tests {
             tolerance: 1e-3,
             nodes: 1,
             mean_edge: 1.0,
+            diagonal: 1.0,
             seconds,
             steps: 1,
             mean_error,

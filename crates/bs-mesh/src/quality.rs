@@ -11,6 +11,40 @@ use nalgebra::{Matrix3, Point3};
 use crate::mesh::{HEX_REF, tet_volume};
 use crate::{ElementKind, Mesh};
 
+/// Mean element edge length: each tetrahedron counts its 6 edges and each hexahedron its
+/// 12, so shared edges count once per element (NaN for a mesh without elements). The
+/// length scale of a mesh's resolution, in the mesh's unit.
+pub fn mean_edge_length(mesh: &Mesh) -> f64 {
+    const TET: [(usize, usize); 6] = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
+    const HEX: [(usize, usize); 12] = [
+        (0, 1),
+        (1, 2),
+        (2, 3),
+        (3, 0),
+        (4, 5),
+        (5, 6),
+        (6, 7),
+        (7, 4),
+        (0, 4),
+        (1, 5),
+        (2, 6),
+        (3, 7),
+    ];
+    let (mut sum, mut n) = (0.0, 0usize);
+    for el in &mesh.elements {
+        let v = el.nodes();
+        let edges: &[(usize, usize)] = match el.kind() {
+            ElementKind::Tet4 => &TET,
+            ElementKind::Hex8 => &HEX,
+        };
+        for &(a, b) in edges {
+            sum += (mesh.nodes[v[a]] - mesh.nodes[v[b]]).norm();
+            n += 1;
+        }
+    }
+    if n == 0 { f64::NAN } else { sum / n as f64 }
+}
+
 /// Normalised radius ratio of a tetrahedron (signed by its orientation).
 pub fn tet_radius_ratio(p: [Point3<f64>; 4]) -> f64 {
     let v = tet_volume(&p[0], &p[1], &p[2], &p[3]);
@@ -120,6 +154,25 @@ pub fn summary(mesh: &Mesh) -> QualitySummary {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Closed forms: the unit cube as one hexahedron (12 unit edges) and the unit corner
+    /// tetrahedron (3 unit edges, 3 of length √2), together and alone.
+    #[test]
+    fn mean_edge_length_matches_closed_forms() {
+        let c: Vec<Point3<f64>> = (0..8)
+            .map(|i| Point3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64))
+            .collect();
+        let hex = crate::Element::hex8([0, 1, 3, 2, 4, 5, 7, 6]);
+        let tet = crate::Element::tet4([0, 1, 2, 4]);
+        let m = Mesh::new(c.clone(), vec![hex]);
+        assert!((mean_edge_length(&m) - 1.0).abs() < 1e-15);
+        let m = Mesh::new(c.clone(), vec![tet]);
+        let t = (3.0 + 3.0 * 2f64.sqrt()) / 6.0;
+        assert!((mean_edge_length(&m) - t).abs() < 1e-15);
+        let m = Mesh::new(c, vec![hex, tet]);
+        assert!((mean_edge_length(&m) - (12.0 + 6.0 * t) / 18.0).abs() < 1e-15);
+        assert!(mean_edge_length(&Mesh::default()).is_nan());
+    }
 
     #[test]
     fn regular_tet_has_ratio_one_and_inverted_is_negative() {
