@@ -271,6 +271,15 @@ pub struct Solver {
     /// Error-estimate tolerance in mesh length units; default 1e-3.
     #[serde(default = "default_tolerance")]
     pub tolerance: f64,
+    /// DR steps of the 3-4-5 load ramp; default 200. Large displacements on coarse meshes
+    /// need a longer ramp (the prescribed nodes otherwise outrun their neighbours and
+    /// invert elements).
+    #[serde(default = "default_ramp_steps")]
+    pub ramp_steps: usize,
+}
+
+fn default_ramp_steps() -> usize {
+    bs_dr::DrParams::default().ramp_steps
 }
 
 fn default_solver() -> SolverKind {
@@ -283,7 +292,11 @@ fn default_tolerance() -> f64 {
 
 impl Default for Solver {
     fn default() -> Self {
-        Solver { kind: default_solver(), tolerance: default_tolerance() }
+        Solver {
+            kind: default_solver(),
+            tolerance: default_tolerance(),
+            ramp_steps: default_ramp_steps(),
+        }
     }
 }
 
@@ -427,6 +440,9 @@ impl Scene {
                 scene.solver.tolerance
             ));
         }
+        if scene.solver.ramp_steps == 0 {
+            return Err("[solver] ramp_steps must be at least 1 (default 200)".into());
+        }
         Ok(scene)
     }
 }
@@ -471,7 +487,7 @@ tolerance = 1e-3
             [Some(0.0), Some(0.0), Some(-8.0)]
         );
         assert_eq!(s.contact.unwrap().algorithm, Algorithm::Paper);
-        assert_eq!(s.solver, Solver { kind: SolverKind::Dr, tolerance: 1e-3 });
+        assert_eq!(s.solver, Solver { kind: SolverKind::Dr, tolerance: 1e-3, ramp_steps: 200 });
     }
 
     #[test]

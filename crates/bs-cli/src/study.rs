@@ -26,6 +26,8 @@ pub struct SolveSettings {
     pub step_fraction: f64,
     /// DR step budget (bs-dr's default when `None`).
     pub max_steps: Option<usize>,
+    /// DR steps of the load ramp.
+    pub ramp_steps: usize,
 }
 
 impl SolveSettings {
@@ -36,6 +38,7 @@ impl SolveSettings {
             tolerance: p.scene.solver.tolerance,
             step_fraction: DrParams::default().step_fraction,
             max_steps: None,
+            ramp_steps: p.scene.solver.ramp_steps,
         }
     }
 }
@@ -65,6 +68,7 @@ pub fn solve_composed(
                 tolerance: relative,
                 step_fraction: s.step_fraction,
                 max_steps: s.max_steps.unwrap_or(defaults.max_steps),
+                ramp_steps: s.ramp_steps,
                 ..defaults
             })
             .solve(&c.model, &c.loads, contact, &mut observe)
@@ -181,6 +185,8 @@ pub struct Variant {
     pub additional_lists: Option<bool>,
     /// DR step budget.
     pub max_steps: Option<usize>,
+    /// DR steps of the load ramp.
+    pub ramp_steps: Option<usize>,
 }
 
 /// Why a variant produced no result.
@@ -254,6 +260,9 @@ impl Variant {
         }
         if let Some(t) = self.tolerance {
             q.scene.solver.tolerance = t;
+        }
+        if let Some(r) = self.ramp_steps {
+            q.scene.solver.ramp_steps = r;
         }
         match self.contact {
             Some(ContactChoice::Off) => {
