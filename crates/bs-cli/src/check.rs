@@ -375,6 +375,16 @@ pub fn run(scene_path: &Path) -> Result<ExitCode, CheckError> {
     for w in &p.warnings {
         let _ = writeln!(o, "  warning: {w}");
     }
+    match crate::advice::findings() {
+        Ok(f) => {
+            for line in crate::advice::advise(&p, &f) {
+                let _ = writeln!(o, "  {line}");
+            }
+        }
+        Err(e) => {
+            let _ = writeln!(o, "  (no advice: {e})");
+        }
+    }
     crate::emit(&o);
     Ok(ExitCode::SUCCESS)
 }

@@ -3,6 +3,7 @@
 //! `cargo xtask validate|chart|stability` measure). The `brainshift` binary is a thin
 //! command-line front end over these modules.
 
+pub mod advice;
 pub mod check;
 pub mod compose;
 pub mod gap;
