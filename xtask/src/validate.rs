@@ -457,6 +457,11 @@ fn calculix_without_contact(add: &mut dyn FnMut(Row)) -> Result<(), String> {
     Ok(())
 }
 
+/// Text for a Markdown table cell: a `|` (as in |u|) would end the cell.
+pub fn escape_cell(s: &str) -> String {
+    s.replace('|', "\\|")
+}
+
 /// The table as Markdown.
 pub fn markdown(rows: &[Row]) -> String {
     let mut s = String::from(
@@ -466,8 +471,8 @@ pub fn markdown(rows: &[Row]) -> String {
         let _ = writeln!(
             s,
             "| {} | {} | {:.3e} | {:.1e} | {} | {} |",
-            r.case,
-            r.quantity,
+            escape_cell(&r.case),
+            escape_cell(&r.quantity),
             r.value,
             r.tolerance,
             r.unit,
