@@ -25,7 +25,7 @@ use bs_cli::scene::{Algorithm, ElementChoice};
 use bs_cli::study::{ContactChoice, Failure, Outcome, Variant, difference};
 use bs_dr::SolveError;
 use bs_mesh::io::Fields;
-use bs_mesh::{Element, Mesh, Point3, TriSurface};
+use bs_mesh::{Mesh, Point3, TriSurface};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
@@ -95,49 +95,7 @@ pub fn classify(result: &Result<Outcome, Failure>, tolerance: f64) -> Verdict {
 /// with node sets BOTTOM (z = 0), TOP (z = L) and PATCH (top nodes within L/4 of the top
 /// centre in x and y).
 pub fn block(n: usize, l: f64, tets: bool) -> Mesh {
-    let idx = |i: usize, j: usize, k: usize| (k * (n + 1) + j) * (n + 1) + i;
-    let h = l / n as f64;
-    let mut nodes = Vec::new();
-    for k in 0..=n {
-        for j in 0..=n {
-            for i in 0..=n {
-                nodes.push(Point3::new(i as f64 * h, j as f64 * h, k as f64 * h));
-            }
-        }
-    }
-    let mut elements = Vec::new();
-    for k in 0..n {
-        for j in 0..n {
-            for i in 0..n {
-                let v = [
-                    idx(i, j, k),
-                    idx(i + 1, j, k),
-                    idx(i + 1, j + 1, k),
-                    idx(i, j + 1, k),
-                    idx(i, j, k + 1),
-                    idx(i + 1, j, k + 1),
-                    idx(i + 1, j + 1, k + 1),
-                    idx(i, j + 1, k + 1),
-                ];
-                if tets {
-                    // Six positively oriented tetrahedra around the diagonal 0–6.
-                    for t in [
-                        [0, 1, 2, 6],
-                        [0, 2, 3, 6],
-                        [0, 3, 7, 6],
-                        [0, 7, 4, 6],
-                        [0, 4, 5, 6],
-                        [0, 5, 1, 6],
-                    ] {
-                        elements.push(Element::tet4(t.map(|q| v[q])));
-                    }
-                } else {
-                    elements.push(Element::hex8(v));
-                }
-            }
-        }
-    }
-    let mut mesh = Mesh::new(nodes, elements);
+    let mut mesh = bs_mesh::structured::box_mesh(n, l, tets);
     let top: Vec<usize> = (0..mesh.nodes.len()).filter(|&i| mesh.nodes[i].z >= l - 1e-9).collect();
     let patch: Vec<usize> = top
         .iter()

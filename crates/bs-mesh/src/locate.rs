@@ -284,46 +284,9 @@ mod tests {
     use super::*;
     use crate::Element;
 
-    /// A jittered, cube split into 6 tetrahedra per cell (n³ cells on [0, 1]³).
+    /// The unit cube of n³ cells, 6 tetrahedra each.
     fn cube(n: usize) -> Mesh {
-        let idx = |i: usize, j: usize, k: usize| (k * (n + 1) + j) * (n + 1) + i;
-        let mut nodes = Vec::new();
-        for k in 0..=n {
-            for j in 0..=n {
-                for i in 0..=n {
-                    let h = 1.0 / n as f64;
-                    nodes.push(Point3::new(i as f64 * h, j as f64 * h, k as f64 * h));
-                }
-            }
-        }
-        let mut elements = Vec::new();
-        for k in 0..n {
-            for j in 0..n {
-                for i in 0..n {
-                    let v = [
-                        idx(i, j, k),
-                        idx(i + 1, j, k),
-                        idx(i + 1, j + 1, k),
-                        idx(i, j + 1, k),
-                        idx(i, j, k + 1),
-                        idx(i + 1, j, k + 1),
-                        idx(i + 1, j + 1, k + 1),
-                        idx(i, j + 1, k + 1),
-                    ];
-                    for t in [
-                        [0, 1, 2, 6],
-                        [0, 2, 3, 6],
-                        [0, 3, 7, 6],
-                        [0, 7, 4, 6],
-                        [0, 4, 5, 6],
-                        [0, 5, 1, 6],
-                    ] {
-                        elements.push(Element::tet4(t.map(|q| v[q])));
-                    }
-                }
-            }
-        }
-        Mesh::new(nodes, elements)
+        crate::structured::box_mesh(n, 1.0, true)
     }
 
     /// A field linear in x is reproduced exactly inside (closed form) and the located
