@@ -163,6 +163,32 @@ impl Handler {
     }
 }
 
+impl Handler {
+    /// The exact closest point at any distance with its feature (the Newton–Krylov solver's
+    /// query): the paper's bucket grid for the paper and coherent handlers, parry's BVH for
+    /// parry, every face for brute force. `None` for a non-finite point or the null handler.
+    pub fn project_exact(&self, p: &bs_mesh::Point3<f64>) -> Option<Projection> {
+        match self {
+            Self::Paper(h) => h.project_exact(p),
+            Self::Coherent(h) => h.paper().project_exact(p),
+            Self::Parry(h) => h.project_exact(p),
+            Self::BruteForce(h) => p.coords.iter().all(|x| x.is_finite()).then(|| h.project(p)),
+            Self::None(_) => None,
+        }
+    }
+
+    /// The master surface of the handler (`None` for the null handler).
+    pub fn master(&self) -> Option<&MasterSurface> {
+        match self {
+            Self::Paper(h) => Some(h.master()),
+            Self::Coherent(h) => Some(h.paper().master()),
+            Self::Parry(h) => Some(h.master()),
+            Self::BruteForce(h) => Some(h.master()),
+            Self::None(_) => None,
+        }
+    }
+}
+
 impl ClosestPoint for Handler {
     #[inline]
     fn closest(&mut self, slave: usize, p: &bs_mesh::Point3<f64>) -> Option<Projection> {

@@ -757,6 +757,53 @@ impl PaperContact {
         let c = self.closest_node(p)?;
         self.local_search(c, p)
     }
+
+    /// The exact closest point of the surface at any distance, with its feature and the
+    /// paper's verdict; `None` only for a non-finite point.
+    ///
+    /// Within `d` of the surface the paper's search is exact ([`project`](Self::project)).
+    /// Farther away: the closest point R satisfies `|PR| ≤ |PC|` for the closest node C, and
+    /// every vertex of a face containing R lies within `|PR| + L_max` of P, so the faces of
+    /// the nodes in that box contain R; each is tested exactly.
+    pub fn project_exact(&self, p: &Point3<f64>) -> Option<Projection> {
+        let c = self.closest_node(p)?;
+        if let Some(proj) = self.local_search(c, p)
+            && proj.distance.abs() <= self.d
+        {
+            return Some(proj);
+        }
+        let m = &*self.master;
+        let radius = (p - m.vertices[c as usize]).norm() + m.max_edge;
+        let mut best = (f64::INFINITY, *p, Feature::Node(c));
+        let mut seen: Vec<u32> = Vec::new();
+        self.grid.for_each_in_box(p, radius, |id, _| {
+            for &t in m.faces_of(id) {
+                if seen.contains(&t) {
+                    continue;
+                }
+                seen.push(t);
+                let tri = m.triangles[t as usize];
+                let (q, region) = crate::geometry::closest_point_triangle(
+                    p,
+                    &m.vertices[tri[0] as usize],
+                    &m.vertices[tri[1] as usize],
+                    &m.vertices[tri[2] as usize],
+                );
+                let d2 = (q - p).norm_squared();
+                if d2 < best.0 {
+                    best = (d2, q, m.feature_of(t, region));
+                }
+            }
+        });
+        let outside = m.is_outside(p, &best.1, best.2);
+        let dist = best.0.sqrt();
+        Some(Projection {
+            point: best.1,
+            distance: if outside { -dist } else { dist },
+            outside,
+            feature: Some(best.2),
+        })
+    }
 }
 
 impl ClosestPoint for PaperContact {

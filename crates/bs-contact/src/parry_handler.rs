@@ -7,6 +7,10 @@ use parry3d_f64::math::Vector as PVec;
 use parry3d_f64::query::PointQuery;
 use parry3d_f64::shape::{TriMesh, TriMeshFlags};
 
+use std::sync::Arc;
+
+use parry3d_f64::query::PointQueryWithLocation;
+
 use crate::ContactError;
 use crate::enforce::{ClosestPoint, Projection};
 use crate::master::MasterSurface;
@@ -14,6 +18,7 @@ use crate::master::MasterSurface;
 /// Closest point and inside test from parry's `TriMesh` (the off-the-shelf baseline).
 pub struct ParryContact {
     mesh: TriMesh,
+    master: Arc<MasterSurface>,
 }
 
 impl std::fmt::Debug for ParryContact {
@@ -36,7 +41,55 @@ impl ParryContact {
             .map_err(|e| {
                 ContactError::InvalidParameter(format!("parry rejected the skull mesh: {e:?}"))
             })?;
-        Ok(Self { mesh })
+        Ok(Self { mesh, master: Arc::new(master.clone()) })
+    }
+
+    /// Closest point with its feature and the paper's verdict at it: parry's BVH finds the
+    /// triangle, the exact point–triangle projection on it gives the feature. `None` for a
+    /// non-finite point.
+    pub fn project_exact(&self, p: &Point3<f64>) -> Option<Projection> {
+        if !p.coords.iter().all(|x| x.is_finite()) {
+            return None;
+        }
+        let q = PVec::new(p.x, p.y, p.z);
+        let (_, (part, _)) = self.mesh.project_local_point_and_get_location(q, false);
+        let m = &*self.master;
+        let t = part.min(m.triangles.len().saturating_sub(1) as u32);
+        // The feature parry reports can be a neighbour of the exact one on ties: test the
+        // triangle and its edge neighbours exactly.
+        let mut best = (f64::INFINITY, *p, crate::Feature::Face(t));
+        let mut consider = |f: u32| {
+            let tri = m.triangles[f as usize];
+            let (r, region) = crate::geometry::closest_point_triangle(
+                p,
+                &m.vertices[tri[0] as usize],
+                &m.vertices[tri[1] as usize],
+                &m.vertices[tri[2] as usize],
+            );
+            let d2 = (r - p).norm_squared();
+            if d2 < best.0 {
+                best = (d2, r, m.feature_of(f, region));
+            }
+        };
+        consider(t);
+        for e in m.face_edges[t as usize] {
+            for f in m.edge_faces[e as usize] {
+                consider(f);
+            }
+        }
+        let outside = m.is_outside(p, &best.1, best.2);
+        let dist = best.0.sqrt();
+        Some(Projection {
+            point: best.1,
+            distance: if outside { -dist } else { dist },
+            outside,
+            feature: Some(best.2),
+        })
+    }
+
+    /// The master surface.
+    pub fn master(&self) -> &MasterSurface {
+        &self.master
     }
 
     /// Closest point with parry's inside flag (`solid = false`).

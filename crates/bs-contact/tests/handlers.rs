@@ -217,3 +217,42 @@ fn closest_node_is_exact_everywhere() {
         }
     }
 }
+
+/// The exact projections the Newton–Krylov solver uses (paper grid and parry BVH) give brute
+/// force's distance, verdict and feature normal at every distance, far beyond the paper's
+/// reach d included.
+#[test]
+fn exact_projections_agree_with_brute_force_at_any_distance() {
+    for (name, s) in surfaces() {
+        let m = Arc::new(MasterSurface::new(&s).unwrap());
+        let brute = BruteForce::from_master(m.clone());
+        let parry = ParryContact::from_master(&m).unwrap();
+        let paper = PaperContact::from_master(m.clone(), PaperParams::default()).unwrap();
+        let mut rng = Rng::new(7);
+        let mut far = 0;
+        for _ in 0..2000 {
+            let q = query_near(&m, &mut rng, 6.0 * m.max_edge);
+            let b = brute.project(&q);
+            far += (b.distance.abs() > paper.max_step_penetration()) as usize;
+            for (handler, p) in
+                [("paper", paper.project_exact(&q)), ("parry", parry.project_exact(&q))]
+            {
+                let p = p.unwrap();
+                let t = tol(b.distance, m.size);
+                assert!(
+                    (p.distance - b.distance).abs() <= t && p.outside == b.outside,
+                    "{name} {handler}: {p:?} vs brute {b:?} at {q:?}"
+                );
+                // The same feature up to exact ties (then the same normal direction).
+                let (pf, bf) = (p.feature.unwrap(), b.feature.unwrap());
+                assert!(
+                    pf == bf
+                        || (m.normal(pf).normalize() - m.normal(bf).normalize()).norm() < 1e-6
+                        || (p.point - b.point).norm() <= t,
+                    "{name} {handler}: feature {pf:?} vs {bf:?} at {q:?}"
+                );
+            }
+        }
+        assert!(far > 500, "{name}: only {far} queries beyond d");
+    }
+}
