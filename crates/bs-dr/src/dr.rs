@@ -314,6 +314,8 @@ impl Solver for DynamicRelaxation {
                 load_factor: load,
                 max_displacement: maxu,
                 contact: last_contact,
+                linear_iterations: 0,
+                force_evaluations: step,
             });
             if err < tol {
                 below += 1;
@@ -328,6 +330,9 @@ impl Solver for DynamicRelaxation {
                             rho,
                             omega_min: omega,
                             contact: last_contact,
+                            force_evaluations: step,
+                            linear_iterations: 0,
+                            breakdown: Default::default(),
                             elapsed: start.elapsed(),
                         },
                     });

@@ -58,20 +58,27 @@
 pub mod contact;
 pub mod dr;
 pub mod forces;
+pub mod krylov;
 pub mod loads;
 pub mod model;
 pub mod newton;
+pub mod newton_krylov;
 pub mod post;
 pub mod solver;
+pub mod sparse;
+pub mod stiffness;
+pub mod twolevel;
 
-pub use contact::{Contact, ContactReport, NoContact};
+pub use contact::{Contact, ContactProjection, ContactReport, NoContact, SurfaceFeature};
 pub use dr::{DrParams, DynamicRelaxation};
 pub use forces::{Inversion, Workspace};
 pub use loads::{LoadError, Loads, ramp};
 pub use model::{Model, ModelError, ModelOptions, Solid, TetFormulation};
 pub use newton::{Newton, NewtonParams};
+pub use newton_krylov::{NewtonKrylov, NewtonKrylovParams, Preparation};
 pub use post::ElementMeasures;
-pub use solver::{Progress, Report, Solution, SolveError, Solver, load_scale};
+pub use solver::{Breakdown, Progress, Report, Solution, SolveError, Solver, load_scale};
+pub use twolevel::TwoLevelParams;
 
 #[cfg(test)]
 mod tests;

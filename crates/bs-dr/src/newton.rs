@@ -222,6 +222,7 @@ impl Solver for Newton {
         let mut rhs = Mat::<f64>::zeros(nf, 1);
         let mut dp = vec![0.0; 3 * n];
         let mut iterations = 0usize;
+        let mut force_evaluations = 0usize;
         let mut last_err = f64::INFINITY;
 
         let residual_norm = |f: &[Vector3<f64>]| -> f64 {
@@ -239,6 +240,7 @@ impl Solver for Newton {
             for it in 1..=p.max_iterations {
                 iterations += 1;
                 // Residual at u and tangent assembly (+ K_fp dp on the first iteration).
+                force_evaluations += 1;
                 if let Err(inv) = model.internal_forces_into(&u, &mut ws, &mut forces) {
                     return Err(SolveError::ElementInverted {
                         step: iterations,
@@ -296,6 +298,7 @@ impl Solver for Newton {
                             trial[d / 3][d % 3] += dp[d];
                         }
                     }
+                    force_evaluations += 1;
                     match model.internal_forces_into(&trial, &mut ws, &mut forces) {
                         Ok(()) => residual_norm(&forces),
                         Err(_) => f64::INFINITY,
@@ -319,6 +322,7 @@ impl Solver for Newton {
                         accepted = true;
                         break;
                     }
+                    force_evaluations += 1;
                     if model.internal_forces_into(&trial, &mut ws, &mut forces).is_ok() {
                         let rn = residual_norm(&forces);
                         if rn <= ref_norm * (1.0 + 1e-9) || alpha < 1e-3 {
@@ -347,6 +351,8 @@ impl Solver for Newton {
                     load_factor: lf,
                     max_displacement: maxu,
                     contact: Default::default(),
+                    linear_iterations: 0,
+                    force_evaluations,
                 });
                 if !step_max.is_finite() {
                     return Err(SolveError::NotFinite { step: iterations });
@@ -385,6 +391,9 @@ impl Solver for Newton {
                 rho: 0.0,
                 omega_min: 0.0,
                 contact: report,
+                force_evaluations,
+                linear_iterations: 0,
+                breakdown: Default::default(),
                 elapsed: start.elapsed(),
             },
         })

@@ -27,6 +27,22 @@ pub struct Progress {
     pub max_displacement: f64,
     /// What the contact handler did in this step.
     pub contact: ContactReport,
+    /// Inner linear-solver iterations so far (Newton–Krylov; 0 for the others).
+    pub linear_iterations: usize,
+    /// Internal-force evaluations so far.
+    pub force_evaluations: usize,
+}
+
+/// Where a solve spent its time (the parts a profile separates; the rest is vector
+/// arithmetic and bookkeeping).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Breakdown {
+    /// Internal-force evaluations.
+    pub forces: Duration,
+    /// Preconditioner applications (Newton–Krylov).
+    pub preconditioner: Duration,
+    /// Contact queries and enforcement.
+    pub contact: Duration,
 }
 
 /// Summary of a successful solve.
@@ -44,8 +60,16 @@ pub struct Report {
     pub rho: f64,
     /// Final DR lowest-eigenvalue estimate `ω_min` in units of 1/h (Newton: 0).
     pub omega_min: f64,
-    /// Contact report of the last step.
+    /// Contact report of the last step (Newton–Krylov: nodes held on the surface at the end,
+    /// and the largest penetration of any iterate).
     pub contact: ContactReport,
+    /// Evaluations of the internal forces (DR: one per step; Newton–Krylov: residuals, line
+    /// search trials and Jacobian products).
+    pub force_evaluations: usize,
+    /// Iterations of the inner linear solver (Newton–Krylov: GMRES; others: 0).
+    pub linear_iterations: usize,
+    /// Where the time went.
+    pub breakdown: Breakdown,
     /// Wall-clock time of the solve.
     pub elapsed: Duration,
 }
@@ -163,6 +187,12 @@ pub enum SolveError {
         load_step: usize,
         /// Newton iteration within the load step (from 1).
         iteration: usize,
+    },
+    /// The preconditioner could not be built.
+    #[error("the preconditioner could not be built: {reason}")]
+    Preconditioner {
+        /// Why.
+        reason: String,
     },
     /// The solver does not support a feature of the model.
     #[error("{solver} does not support {what}: {fix}")]

@@ -7,5 +7,6 @@ mod contact_seam;
 mod guard;
 mod homogeneous;
 mod locking;
+mod newton_krylov;
 mod newton_vs_dr;
 mod parallel;

@@ -1,0 +1,278 @@
+//! The small-strain stiffness `K₀` of a model at its reference state: what the Newton–Krylov
+//! solver's preconditioner is built from.
+//!
+//! Every law linearises at `F = I` to isotropic elasticity with the shear modulus `μ` and
+//! bulk modulus `κ` of [`bs_material::Material::elastic`]. T4 and H8 elements contribute
+//! their element stiffness `V Bᵀ D B` (H8 with its hourglass matrix on each component).
+//! The average-nodal-pressure tetrahedron linearises to its deviatoric element stiffness plus
+//! a nodal volumetric term: with `c_n = Σ_{e∋n} V_e ∇J_e / V_n` the gradient of the nodal
+//! volume ratio and `V_n = Σ_{e∋n} V_e`, the force kernel's volumetric part is
+//! `Σ_e V_e κ_e ∇J_e (¼ Σ_{n∈e} c_n)ᵀ = Σ_n (V_n κ̄_n / 4) c_n c_nᵀ` (exact for one `κ`; with
+//! several regions `κ̄_n` is the volume average at the node, a symmetric approximation).
+//! That term is kept as a [`RankOneSum`], never assembled: it would couple each node with its
+//! two-ring.
+
+use bs_mesh::Vector3;
+use nalgebra::Matrix3;
+use rayon::prelude::*;
+
+use crate::model::{Model, TetFormulation};
+use crate::sparse::{BlockCsr, RankOneSum};
+
+/// `K₀` of a model: the assembled element part and, for T4ANP, the nodal volumetric part.
+#[derive(Debug, Clone)]
+pub struct LinearStiffness {
+    /// Element stiffness (deviatoric only for T4ANP tetrahedra).
+    pub elements: BlockCsr,
+    /// The T4ANP nodal volumetric term, if the model has T4ANP tetrahedra.
+    pub nodal: Option<RankOneSum>,
+}
+
+/// Scratch of [`LinearStiffness::mul`].
+#[derive(Debug, Clone, Default)]
+pub struct StiffnessScratch {
+    terms: Vec<f64>,
+}
+
+impl StiffnessScratch {
+    /// One value per nodal term.
+    pub(crate) fn terms_mut(&mut self) -> &mut [f64] {
+        &mut self.terms
+    }
+}
+
+/// `K_ab = V (λ gₐ⊗g_b + μ g_b⊗gₐ + μ (gₐ·g_b) I)`: the isotropic small-strain stiffness block
+/// coupling nodes `a` and `b` of an element with (mean) gradients `ga`, `gb`.
+#[inline]
+fn block(ga: &[f64; 3], gb: &[f64; 3], lambda: f64, mu: f64, vol: f64) -> Matrix3<f64> {
+    let dot = ga[0] * gb[0] + ga[1] * gb[1] + ga[2] * gb[2];
+    Matrix3::from_fn(|i, j| {
+        vol * (lambda * ga[i] * gb[j] + mu * ga[j] * gb[i] + if i == j { mu * dot } else { 0.0 })
+    })
+}
+
+impl LinearStiffness {
+    /// Assembles `K₀` for `model` (all nodes, no boundary conditions).
+    pub fn new(model: &Model) -> Self {
+        let n = model.node_count();
+        let anp = model.options.tet == TetFormulation::T4Anp && !model.tets.is_empty();
+        // Node adjacency from the element connectivity.
+        let mut adjacency: Vec<Vec<u32>> = vec![Vec::new(); n];
+        for t in &model.tets {
+            for &a in &t.nodes {
+                adjacency[a as usize].extend_from_slice(&t.nodes);
+            }
+        }
+        for h in &model.hexes {
+            for &a in &h.nodes {
+                adjacency[a as usize].extend_from_slice(&h.nodes);
+            }
+        }
+        adjacency.par_iter_mut().for_each(|row| {
+            row.sort_unstable();
+            row.dedup();
+        });
+        let mut k = BlockCsr::from_pattern(&adjacency);
+        // Row-parallel assembly through the node → element-slot map (fixed order per row).
+        let nt = model.tets.len();
+        let BlockCsr { ptr, col, val } = &mut k;
+        let rows: Vec<&mut [Matrix3<f64>]> = {
+            let mut rest: &mut [Matrix3<f64>] = val;
+            let mut out = Vec::with_capacity(n);
+            for r in 0..n {
+                let len = (ptr[r + 1] - ptr[r]) as usize;
+                let (head, tail) = rest.split_at_mut(len);
+                out.push(head);
+                rest = tail;
+            }
+            out
+        };
+        let ptr = &*ptr;
+        let col = &*col;
+        rows.into_par_iter().enumerate().with_min_len(128).for_each(|(r, row)| {
+            let cols = &col[ptr[r] as usize..ptr[r + 1] as usize];
+            let pos = |c: u32| cols.binary_search(&c).expect("node pair in the adjacency pattern");
+            let lo = model.gather_ptr[r] as usize;
+            let hi = model.gather_ptr[r + 1] as usize;
+            for &s in &model.gather_slot[lo..hi] {
+                let s = s as usize;
+                if s < 4 * nt {
+                    let t = &model.tets[s / 4];
+                    let el = model.solids[t.mat as usize].material.elastic();
+                    let lambda = if anp { -2.0 / 3.0 * el.mu } else { el.lambda() };
+                    let a = s % 4;
+                    for b in 0..4 {
+                        row[pos(t.nodes[b])] += block(&t.g[a], &t.g[b], lambda, el.mu, t.vol);
+                    }
+                } else {
+                    let s = s - 4 * nt;
+                    let h = &model.hexes[s / 8];
+                    let el = model.solids[h.mat as usize].material.elastic();
+                    let a = s % 8;
+                    for b in 0..8 {
+                        let mut kb = block(&h.g[a], &h.g[b], el.lambda(), el.mu, h.vol);
+                        for i in 0..3 {
+                            kb[(i, i)] += h.hg[a][b];
+                        }
+                        row[pos(h.nodes[b])] += kb;
+                    }
+                }
+            }
+        });
+        let nodal = anp.then(|| nodal_volumetric(model));
+        LinearStiffness { elements: k, nodal }
+    }
+
+    /// Scratch buffers for [`mul`](Self::mul).
+    pub fn scratch(&self) -> StiffnessScratch {
+        StiffnessScratch { terms: vec![0.0; self.nodal.as_ref().map_or(0, RankOneSum::terms)] }
+    }
+
+    /// `y = K₀ x`.
+    pub fn mul(&self, x: &[Vector3<f64>], y: &mut [Vector3<f64>], s: &mut StiffnessScratch) {
+        self.elements.mul(x, y);
+        if let Some(nodal) = &self.nodal {
+            nodal.project_into(x, &mut s.terms);
+            nodal.add_expand(&s.terms, y);
+        }
+    }
+
+    /// The 3×3 diagonal block of node `a` (element and nodal parts).
+    pub fn diagonal(&self, a: usize) -> Matrix3<f64> {
+        let mut d = self.elements.diagonal(a);
+        if let Some(nodal) = &self.nodal {
+            let (lo, hi) = (nodal.t_ptr[a] as usize, nodal.t_ptr[a + 1] as usize);
+            for k in lo..hi {
+                let c = nodal.t_val[k];
+                d += c * c.transpose() * nodal.weight[nodal.t_col[k] as usize];
+            }
+        }
+        d
+    }
+}
+
+/// The T4ANP nodal volumetric term `Σ_n (V_n κ̄_n / 4) c_n c_nᵀ` (see the module docs).
+fn nodal_volumetric(model: &Model) -> RankOneSum {
+    let n = model.node_count();
+    let nt = model.tets.len();
+    type Row = (f64, Vec<(u32, Vector3<f64>)>);
+    let rows: Vec<Row> = (0..n)
+        .into_par_iter()
+        .with_min_len(128)
+        .map(|r| {
+            let lo = model.gather_ptr[r] as usize;
+            let hi = model.gather_ptr[r + 1] as usize;
+            let mut vol = 0.0;
+            let mut vk = 0.0;
+            let mut entries: Vec<(u32, Vector3<f64>)> = Vec::new();
+            for &s in &model.gather_slot[lo..hi] {
+                let s = s as usize;
+                if s >= 4 * nt {
+                    continue;
+                }
+                let t = &model.tets[s / 4];
+                vol += t.vol;
+                vk += t.vol * model.solids[t.mat as usize].material.elastic().kappa;
+                for b in 0..4 {
+                    entries.push((t.nodes[b], Vector3::from(t.g[b]) * t.vol));
+                }
+            }
+            if vol == 0.0 {
+                return (0.0, Vec::new());
+            }
+            entries.sort_by_key(|e| e.0);
+            let mut merged: Vec<(u32, Vector3<f64>)> = Vec::with_capacity(entries.len());
+            for (node, v) in entries {
+                match merged.last_mut() {
+                    Some(last) if last.0 == node => last.1 += v,
+                    _ => merged.push((node, v)),
+                }
+            }
+            for e in &mut merged {
+                e.1 /= vol;
+            }
+            (vk / 4.0, merged)
+        })
+        .collect();
+    let (weight, rows): (Vec<f64>, Vec<_>) = rows.into_iter().unzip();
+    RankOneSum::new(weight, &rows, n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{ModelOptions, Solid};
+    use bs_material::Material;
+    use bs_mesh::structured::box_mesh;
+
+    /// `K₀ v` against the central difference of the internal forces at the reference state,
+    /// which is the definition of the linearisation (independent of how `K₀` is built).
+    fn check(tet: TetFormulation, hexes: bool) {
+        let mut mesh = box_mesh(3, 1.0, !hexes);
+        for (i, p) in mesh.nodes.iter_mut().enumerate() {
+            let t = i as f64;
+            p.x += 0.03 * (1.7 * t).sin();
+            p.y += 0.03 * (2.3 * t).cos() + 0.1 * p.x;
+            p.z += 0.03 * (0.9 * t).sin();
+        }
+        let solid =
+            Solid { material: Material::neo_hookean(3000.0, 0.45).unwrap(), density: 1000.0 };
+        let model = Model::uniform(&mesh, solid, ModelOptions { tet, hourglass: 0.1 }).unwrap();
+        let k = LinearStiffness::new(&model);
+        let n = model.node_count();
+        let v: Vec<Vector3<f64>> = (0..n)
+            .map(|i| {
+                Vector3::new(
+                    (i as f64 * 0.7).sin(),
+                    (i as f64 * 1.3).cos(),
+                    0.5 - (i % 3) as f64 * 0.4,
+                )
+            })
+            .collect();
+        let mut kv = vec![Vector3::zeros(); n];
+        let mut s = k.scratch();
+        k.mul(&v, &mut kv, &mut s);
+        let h = 1e-6;
+        let mut ws = model.workspace();
+        let (mut fp, mut fm) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]);
+        let up: Vec<_> = v.iter().map(|x| x * h).collect();
+        let um: Vec<_> = v.iter().map(|x| -x * h).collect();
+        model.internal_forces_into(&up, &mut ws, &mut fp).unwrap();
+        model.internal_forces_into(&um, &mut ws, &mut fm).unwrap();
+        let scale = kv.iter().fold(0.0f64, |m, x| m.max(x.amax()));
+        for i in 0..n {
+            let fd = (fp[i] - fm[i]) / (2.0 * h);
+            assert!((fd - kv[i]).amax() <= 1e-6 * scale, "node {i}: {fd:?} vs {:?}", kv[i]);
+        }
+        // The diagonal blocks are those of the operator.
+        for a in [0, n / 2, n - 1] {
+            let mut col = [Vector3::zeros(); 3];
+            for (c, out) in col.iter_mut().enumerate() {
+                let mut e = vec![Vector3::zeros(); n];
+                e[a][c] = 1.0;
+                let mut y = vec![Vector3::zeros(); n];
+                k.mul(&e, &mut y, &mut s);
+                *out = y[a];
+            }
+            let d = k.diagonal(a);
+            for c in 0..3 {
+                assert!((d.column(c) - col[c]).amax() <= 1e-9 * scale);
+            }
+        }
+    }
+
+    #[test]
+    fn t4_stiffness_is_the_linearised_force() {
+        check(TetFormulation::T4, false);
+    }
+
+    #[test]
+    fn t4anp_stiffness_is_the_linearised_force() {
+        check(TetFormulation::T4Anp, false);
+    }
+
+    #[test]
+    fn h8_stiffness_is_the_linearised_force() {
+        check(TetFormulation::T4, true);
+    }
+}
