@@ -2,8 +2,15 @@
 //! the only place that knows both `bs-dr` and `bs-contact`; the adapter [`SkullContact`]
 //! bridges bs-contact's enforcement loop to bs-dr's `Contact` trait.
 
-use bs_contact::{Enforcer, Handler, MasterSurface, PaperParams};
-use bs_dr::{ContactReport, Loads, Model, ModelOptions, Solid, TetFormulation};
+use std::sync::Arc;
+
+use bs_contact::{
+    ClosestPoint, Enforcer, Feature, Handler, MasterSurface, PaperParams, ParryContact,
+};
+use bs_dr::{
+    ContactProjection, ContactReport, Loads, Model, ModelOptions, Solid, SurfaceFeature,
+    TetFormulation,
+};
 use bs_material::{Material, OgdenParams};
 
 use crate::check::{CheckError, Prepared};
@@ -14,6 +21,9 @@ use crate::scene::{Algorithm, ElementChoice, MaterialModel};
 #[derive(Debug)]
 pub struct SkullContact {
     enforcer: Enforcer<Handler>,
+    /// Exact closest points at any distance (parry's BVH and the exact point–triangle
+    /// projection), for the Newton–Krylov solver's queries beyond the handler's reach.
+    exact: Arc<ParryContact>,
     /// Wall time spent enforcing contact so far.
     pub elapsed: std::time::Duration,
 }
@@ -24,6 +34,46 @@ impl bs_dr::Contact for SkullContact {
         let r = self.enforcer.enforce(positions);
         self.elapsed += start.elapsed();
         ContactReport { nodes_in_contact: r.nodes_in_contact, max_penetration: r.max_penetration }
+    }
+
+    fn nodes(&self) -> &[usize] {
+        self.enforcer.slaves()
+    }
+
+    fn project(&mut self, k: usize, p: &bs_mesh::Point3<f64>) -> Option<ContactProjection> {
+        let start = std::time::Instant::now();
+        // The handler's own search first: it certifies most points inside at no cost and is
+        // exact within its reach; beyond it, the exact projection.
+        let handler = self.enforcer.handler_mut();
+        let reach = handler.reach();
+        let fast = handler.closest(k, p);
+        let proj = match fast {
+            None if p.coords.iter().all(|x| x.is_finite()) => {
+                self.elapsed += start.elapsed();
+                return Some(ContactProjection {
+                    point: *p,
+                    outside: false,
+                    feature: SurfaceFeature::Vertex,
+                });
+            }
+            Some(proj) if proj.distance.abs() <= reach && proj.feature.is_some() => Some(proj),
+            _ => self.exact.project_exact(p),
+        };
+        let master = self.exact.master();
+        let result = proj.and_then(|proj| {
+            let feature = match proj.feature? {
+                Feature::Face(f) => SurfaceFeature::Face(master.face_normals[f as usize]),
+                Feature::Edge(e) => {
+                    let [a, b] = master.edges[e as usize];
+                    let t = master.vertices[b as usize] - master.vertices[a as usize];
+                    SurfaceFeature::Edge(t.normalize())
+                }
+                Feature::Node(_) => SurfaceFeature::Vertex,
+            };
+            Some(ContactProjection { point: proj.point, outside: proj.outside, feature })
+        });
+        self.elapsed += start.elapsed();
+        result
     }
 }
 
@@ -38,11 +88,18 @@ pub struct Composed {
     pub slaves: Vec<usize>,
     /// The skull's precomputed surface (for gap checks), if the scene has contact.
     pub master: Option<MasterSurface>,
+    /// Exact closest points on the skull at any distance (the initial and final checks, and
+    /// the Newton–Krylov solver's queries), if the scene has contact.
+    pub exact: Option<Arc<ParryContact>>,
     /// The contact handler, if the scene has contact.
     pub contact: Option<SkullContact>,
     /// The length by which solver tolerances are scaled (largest prescribed displacement
     /// component, or the mesh diagonal without loads): bs-dr's tolerances are relative.
     pub load_scale: f64,
+    /// The Newton–Krylov solver's preparation (its preconditioner), once computed
+    /// ([`crate::study::prepare_solver`]); it depends only on the model and which components
+    /// are prescribed, so it is kept for every solve of this composition.
+    pub preparation: Option<bs_dr::Preparation>,
 }
 
 /// The bs-material law of a scene material.
@@ -128,7 +185,7 @@ pub fn compose_with(p: &Prepared, opts: &ComposeOptions) -> Result<Composed, Che
         .filter(|&n| p.prescribed[n].iter().all(Option::is_none))
         .collect();
 
-    let (master, contact) = match (&p.skull, &p.scene.contact) {
+    let (master, contact, exact) = match (&p.skull, &p.scene.contact) {
         (Some(skull), Some(c)) => {
             let master = MasterSurface::new(skull)
                 .map_err(|e| CheckError(format!("{}: {e}", c.skull.display())))?;
@@ -136,11 +193,19 @@ pub fn compose_with(p: &Prepared, opts: &ComposeOptions) -> Result<Composed, Che
                 .map_err(|e| CheckError(format!("{}: {e}", c.skull.display())))?;
             let enforcer = Enforcer::new(handler, slaves.clone(), model.node_count())
                 .map_err(|e| CheckError(e.to_string()))?;
-            (Some(master), Some(SkullContact { enforcer, elapsed: Default::default() }))
+            let exact = Arc::new(
+                ParryContact::from_master(&master)
+                    .map_err(|e| CheckError(format!("{}: {e}", c.skull.display())))?,
+            );
+            (
+                Some(master),
+                Some(SkullContact { enforcer, exact: exact.clone(), elapsed: Default::default() }),
+                Some(exact),
+            )
         }
-        _ => (None, None),
+        _ => (None, None, None),
     };
-    Ok(Composed { model, loads, slaves, master, contact, load_scale })
+    Ok(Composed { model, loads, slaves, master, exact, contact, load_scale, preparation: None })
 }
 
 /// The bs-contact algorithm named by a scene.
@@ -157,11 +222,10 @@ impl Composed {
     /// Slave nodes outside the skull in the reference configuration: an error listing their
     /// ids and distances (a run would snap them onto the skull at the first step).
     pub fn check_initial_gap(&self, p: &Prepared) -> Result<Option<(f64, f64)>, CheckError> {
-        let Some(master) = &self.master else { return Ok(None) };
-        // Exact distances (brute force: this runs once, before the solve).
-        let mut brute = bs_contact::BruteForce::from_master(std::sync::Arc::new(master.clone()));
-        let points: Vec<_> = self.slaves.iter().map(|&n| p.mesh.nodes[n]).collect();
-        let rows = bs_contact::gap(&mut brute, master, &points);
+        let Some(exact) = &self.exact else { return Ok(None) };
+        // Exact distances (parry's BVH and the exact point–triangle projection, equal to
+        // brute force at any distance: bs-contact's tests).
+        let rows = exact_gaps(exact, self.slaves.iter().map(|&n| p.mesh.nodes[n]));
         let outside: Vec<(usize, f64)> = rows
             .iter()
             .zip(&self.slaves)
@@ -187,4 +251,23 @@ impl Composed {
         let max = rows.iter().map(|r| r.signed_distance).fold(f64::NEG_INFINITY, f64::max);
         Ok(Some((min, max)))
     }
+}
+
+/// Exact signed distances of `points` to the skull (see [`ParryContact::project_exact`]).
+pub fn exact_gaps(
+    exact: &ParryContact,
+    points: impl Iterator<Item = bs_mesh::Point3<f64>>,
+) -> Vec<bs_contact::GapRow> {
+    points
+        .map(|q| match exact.project_exact(&q) {
+            Some(pr) => bs_contact::GapRow {
+                signed_distance: pr.distance,
+                closest: pr.point,
+                outside: pr.outside,
+            },
+            None => {
+                bs_contact::GapRow { signed_distance: f64::NEG_INFINITY, closest: q, outside: true }
+            }
+        })
+        .collect()
 }

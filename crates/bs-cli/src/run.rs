@@ -12,8 +12,7 @@ use serde::Serialize;
 
 use crate::check::{CheckError, Prepared};
 use crate::compose::{Composed, compose};
-use crate::scene::SolverKind;
-use crate::study::{SolveSettings, final_contact, solve_composed};
+use crate::study::{SolveSettings, final_contact, prepare_solver, solve_composed};
 
 /// Options of `run`.
 #[derive(Debug)]
@@ -35,10 +34,26 @@ pub struct RunReport {
     pub converged: bool,
     /// DR steps or Newton iterations.
     pub steps: usize,
-    /// Wall time of the solve alone.
+    /// Wall time of the solver alone.
     pub wall_seconds: f64,
-    /// Part of `wall_seconds` spent in contact enforcement.
+    /// Wall time of everything that depends only on mesh, materials and skull (the model's
+    /// precomputation, the contact search structures, the solver's preconditioner): what can
+    /// be computed before surgery.
+    pub prepare_seconds: f64,
+    /// Wall time from known displacements to a converged, checked result (the solver and
+    /// the final contact check).
+    pub solve_seconds: f64,
+    /// Evaluations of the internal forces.
+    pub force_evaluations: usize,
+    /// Inner linear-solver iterations (newton-krylov: GMRES; otherwise 0).
+    pub linear_iterations: usize,
+    /// Part of `wall_seconds` spent in contact enforcement and queries.
     pub contact_seconds: f64,
+    /// Part of `wall_seconds` spent evaluating internal forces (newton-krylov; 0 for the
+    /// others, which do not time it).
+    pub force_seconds: f64,
+    /// Part of `wall_seconds` spent in the preconditioner (newton-krylov).
+    pub preconditioner_seconds: f64,
     /// Wall time including reading, setup and writing.
     pub total_seconds: f64,
     /// Final error estimate (mesh length units).
@@ -57,7 +72,7 @@ pub struct RunReport {
     pub max_penetration_after: f64,
     /// Largest nodal displacement magnitude.
     pub max_displacement: f64,
-    /// `"dr"` or `"newton"`.
+    /// `"newton-krylov"`, `"dr"` or `"newton"`.
     pub solver: &'static str,
     /// `"t4"`, `"t4anp"` or `"h8"`.
     pub element: String,
@@ -81,20 +96,22 @@ struct Reporter {
     quiet: bool,
     last: Instant,
     tolerance: f64,
+    /// Report every `every`-th step (50 for DR's thousands of steps, 1 for Newton's tens).
+    every: usize,
 }
 
 impl Reporter {
-    fn new(quiet: bool, tolerance: f64) -> Self {
+    fn new(quiet: bool, tolerance: f64, every: usize) -> Self {
         let bar = (!quiet && std::io::stderr().is_terminal()).then(|| {
             let b = indicatif::ProgressBar::new_spinner();
             b.enable_steady_tick(Duration::from_millis(120));
             b
         });
-        Reporter { bar, quiet, last: Instant::now(), tolerance }
+        Reporter { bar, quiet, last: Instant::now(), tolerance, every }
     }
 
     fn update(&mut self, p: &Progress) {
-        if self.quiet || !p.step.is_multiple_of(50) {
+        if self.quiet || !p.step.is_multiple_of(self.every) {
             return;
         }
         let msg = format!(
@@ -128,14 +145,19 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
     let started = Instant::now();
     let with_scene = |e: CheckError| format!("{}: {e}", opts.scene.display());
     let prepared = Prepared::load(&opts.scene)?;
-    let mut composed = compose(&prepared).map_err(with_scene)?;
-    composed.check_initial_gap(&prepared).map_err(with_scene)?;
     if let Some(n) = opts.threads {
         rayon::ThreadPoolBuilder::new()
             .num_threads(n.max(1))
             .build_global()
             .map_err(|e| format!("cannot start {n} threads: {e}"))?;
     }
+    let preparing = Instant::now();
+    let mut composed = compose(&prepared).map_err(with_scene)?;
+    composed.check_initial_gap(&prepared).map_err(with_scene)?;
+    let settings = SolveSettings::of(&prepared);
+    prepare_solver(&mut composed, &settings)
+        .map_err(|e| format!("cannot prepare the solver: {e}"))?;
+    let prepare_seconds = preparing.elapsed().as_secs_f64();
     let threads = rayon::current_num_threads();
     if !opts.quiet {
         for w in &prepared.warnings {
@@ -154,12 +176,28 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
         );
     }
 
+    let solving = Instant::now();
     let solution = solve(&prepared, &mut composed, opts.quiet)?;
-    write_outputs(&prepared, &composed, &solution, opts, started, threads)
+    let (in_contact, max_penetration_after) = final_contact(
+        &prepared,
+        &composed,
+        &solution.solution.displacements,
+        prepared.scene.solver.tolerance,
+    )?;
+    let times =
+        Times { started, prepare_seconds, solve_seconds: solving.elapsed().as_secs_f64(), threads };
+    write_outputs(&prepared, &composed, &solution, opts, &times, in_contact, max_penetration_after)
 }
 
 fn element_name(p: &Prepared) -> String {
     format!("{:?}", p.element).to_lowercase()
+}
+
+struct Times {
+    started: Instant,
+    prepare_seconds: f64,
+    solve_seconds: f64,
+    threads: usize,
 }
 
 struct Solved {
@@ -173,7 +211,8 @@ fn solve(
     quiet: bool,
 ) -> Result<Solved, Box<dyn std::error::Error>> {
     let settings = SolveSettings::of(p);
-    let mut reporter = Reporter::new(quiet, settings.tolerance);
+    let every = if settings.kind == crate::scene::SolverKind::Dr { 50 } else { 1 };
+    let mut reporter = Reporter::new(quiet, settings.tolerance, every);
     let result = solve_composed(c, &settings, &mut |pr| reporter.update(pr));
     reporter.finish();
     let (solution, max_penetration) = result.map_err(|e| format!("the solver stopped: {e}"))?;
@@ -185,15 +224,15 @@ fn write_outputs(
     c: &Composed,
     s: &Solved,
     opts: &RunOptions,
-    started: Instant,
-    threads: usize,
+    times: &Times,
+    in_contact: Vec<f64>,
+    max_penetration_after: f64,
 ) -> Result<ExitCode, Box<dyn std::error::Error>> {
     let u = &s.solution.displacements;
     let measures = c.model.element_measures(u)?;
     let n = p.mesh.nodes.len();
     let tol = p.scene.solver.tolerance;
-
-    let (in_contact, max_penetration_after) = final_contact(p, c, u, tol)?;
+    let (started, threads) = (times.started, times.threads);
 
     std::fs::create_dir_all(&opts.out)
         .map_err(|e| format!("cannot create the output folder {}: {e}", opts.out.display()))?;
@@ -225,7 +264,13 @@ fn write_outputs(
         converged: true,
         steps: r.steps,
         wall_seconds: r.elapsed.as_secs_f64(),
+        prepare_seconds: times.prepare_seconds,
+        solve_seconds: times.solve_seconds,
+        force_evaluations: r.force_evaluations,
+        linear_iterations: r.linear_iterations,
         contact_seconds: c.contact.as_ref().map_or(0.0, |sc| sc.elapsed.as_secs_f64()),
+        force_seconds: r.breakdown.forces.as_secs_f64(),
+        preconditioner_seconds: r.breakdown.preconditioner.as_secs_f64(),
         total_seconds: started.elapsed().as_secs_f64(),
         error_estimate: r.err,
         tolerance: tol,
@@ -234,10 +279,7 @@ fn write_outputs(
         max_penetration_before_correction: s.max_penetration,
         max_penetration_after,
         max_displacement: u.iter().map(|d| d.norm()).fold(0.0, f64::max),
-        solver: match p.scene.solver.kind {
-            SolverKind::Dr => "dr",
-            SolverKind::Newton => "newton",
-        },
+        solver: p.scene.solver.kind.name(),
         element: element_name(p),
         algorithm: p.scene.contact.as_ref().map_or("none", |c| c.algorithm.name()).to_string(),
         nodes: n,
@@ -252,11 +294,13 @@ fn write_outputs(
     if !opts.quiet {
         let u_unit = p.scene.units.symbol();
         crate::emit(&format!(
-            "converged in {} steps ({:.3} s solve of which {:.3} s contact, {:.3} s total): error \
-             estimate {:.2e} {u_unit}, max displacement {:.4} {u_unit}, {} nodes in contact, max \
-             penetration before correction {:.2e} {u_unit}\nwrote {}, {}, {}\n",
+            "converged in {} {} ({:.3} s preparation, {:.3} s solve of which {:.3} s contact, \
+             {:.3} s total): error estimate {:.2e} {u_unit}, max displacement {:.4} {u_unit}, {} \
+             nodes in contact, max penetration before correction {:.2e} {u_unit}\nwrote {}, {}, {}\n",
             report.steps,
-            report.wall_seconds,
+            if report.solver == "dr" { "steps" } else { "iterations" },
+            report.prepare_seconds,
+            report.solve_seconds,
             report.contact_seconds,
             report.total_seconds,
             report.error_estimate,

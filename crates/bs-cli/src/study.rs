@@ -7,7 +7,8 @@ use std::time::Instant;
 
 use bs_contact::PaperParams;
 use bs_dr::{
-    DrParams, DynamicRelaxation, Newton, NewtonParams, Progress, Solution, SolveError, Solver,
+    DrParams, DynamicRelaxation, Newton, NewtonKrylov, NewtonKrylovParams, NewtonParams, Progress,
+    Solution, SolveError, Solver,
 };
 use nalgebra::Vector3;
 
@@ -43,6 +44,31 @@ impl SolveSettings {
     }
 }
 
+/// The Newton–Krylov solver for settings `s` on composition `c`.
+fn newton_krylov(c: &Composed, s: &SolveSettings) -> NewtonKrylov {
+    newton_krylov_params(s, c.load_scale)
+}
+
+fn newton_krylov_params(s: &SolveSettings, load_scale: f64) -> NewtonKrylov {
+    NewtonKrylov::new(NewtonKrylovParams {
+        tolerance: s.tolerance / load_scale,
+        max_iterations: s.max_steps.unwrap_or(NewtonKrylovParams::default().max_iterations),
+        ..NewtonKrylovParams::default()
+    })
+}
+
+/// Computes what the chosen solver can compute before the loads are known (the
+/// Newton–Krylov preconditioner) and keeps it in `c`; nothing for the other solvers. A
+/// preparation already in `c` that fits its loads is reused.
+pub fn prepare_solver(c: &mut Composed, s: &SolveSettings) -> Result<(), SolveError> {
+    if s.kind == SolverKind::NewtonKrylov
+        && c.preparation.as_ref().is_none_or(|p| !p.fits(&c.loads))
+    {
+        c.preparation = Some(newton_krylov(c, s).prepare(&c.model, &c.loads)?);
+    }
+    Ok(())
+}
+
 /// Solves a composed scene, returning the solution and the largest penetration any slave
 /// had before it was corrected (over all steps).
 pub fn solve_composed(
@@ -56,12 +82,23 @@ pub fn solve_composed(
         max_penetration = max_penetration.max(pr.contact.max_penetration);
         observer(pr);
     };
+    prepare_solver(c, s)?;
     let mut none = bs_dr::NoContact;
     let contact: &mut dyn bs_dr::Contact = match &mut c.contact {
         Some(sc) => sc,
         None => &mut none,
     };
     let solution = match s.kind {
+        SolverKind::NewtonKrylov => {
+            let prep = c.preparation.as_ref().expect("prepared above");
+            newton_krylov_params(s, c.load_scale).solve_prepared(
+                &c.model,
+                &c.loads,
+                prep,
+                contact,
+                &mut observe,
+            )
+        }
         SolverKind::Dr => {
             let defaults = DrParams::default();
             DynamicRelaxation::new(DrParams {
@@ -85,7 +122,8 @@ pub fn solve_composed(
     Ok((solution, max_penetration))
 }
 
-/// Contact state of a result, measured exactly (brute force, once per solve).
+/// Contact state of a result, measured exactly (parry's BVH and the exact point–triangle
+/// projection, independent of the handler the solver used; once per solve).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContactState {
     /// Per node: 1 if the node is a slave within the tolerance of the skull, else 0.
@@ -107,10 +145,9 @@ pub fn contact_state(p: &Prepared, c: &Composed, u: &[Vector3<f64>], tol: f64) -
         outside: 0,
         worst: None,
     };
-    if let Some(master) = &c.master {
-        let mut brute = bs_contact::BruteForce::from_master(std::sync::Arc::new(master.clone()));
-        let points: Vec<_> = c.slaves.iter().map(|&i| p.mesh.nodes[i] + u[i]).collect();
-        for (row, &i) in bs_contact::gap(&mut brute, master, &points).iter().zip(&c.slaves) {
+    if let Some(exact) = &c.exact {
+        let points = c.slaves.iter().map(|&i| p.mesh.nodes[i] + u[i]);
+        for (row, &i) in crate::compose::exact_gaps(exact, points).iter().zip(&c.slaves) {
             if row.signed_distance <= tol {
                 st.in_contact[i] = 1.0;
             }
@@ -221,8 +258,18 @@ pub struct Outcome {
     pub steps: usize,
     /// Wall time of model and contact setup (seconds).
     pub setup_seconds: f64,
-    /// Wall time of the solve (seconds).
+    /// Wall time of everything that depends only on mesh, materials and skull: the setup
+    /// and the solver's preparation (the Newton–Krylov preconditioner) (seconds).
+    pub prepare_seconds: f64,
+    /// Wall time of the solver alone (seconds).
+    pub solver_seconds: f64,
+    /// Wall time from known displacements to a converged, checked result: the solver and
+    /// the final contact check (seconds).
     pub solve_seconds: f64,
+    /// Evaluations of the internal forces.
+    pub force_evaluations: usize,
+    /// Inner linear-solver iterations (Newton–Krylov's GMRES).
+    pub linear_iterations: usize,
     /// Part of the solve spent in contact enforcement (seconds).
     pub contact_seconds: f64,
     /// Final error estimate, mesh length units.
@@ -321,11 +368,15 @@ impl Variant {
             settings.step_fraction = f;
         }
         settings.max_steps = self.max_steps;
+        prepare_solver(&mut c, &settings).map_err(Failure::Solve)?;
+        let prepare_seconds = started.elapsed().as_secs_f64();
+        let solving = Instant::now();
         let (solution, max_penetration_before) =
             solve_composed(&mut c, &settings, &mut |_| {}).map_err(Failure::Solve)?;
         let u = solution.displacements;
         let (in_contact, max_penetration_after) =
             final_contact(&q, &c, &u, settings.tolerance).map_err(Failure::Check)?;
+        let solve_seconds = solving.elapsed().as_secs_f64();
         let min_volume_ratio = c
             .model
             .element_measures(&u)
@@ -334,7 +385,11 @@ impl Variant {
         Ok(Outcome {
             steps: solution.report.steps,
             setup_seconds,
-            solve_seconds: solution.report.elapsed.as_secs_f64(),
+            prepare_seconds,
+            solver_seconds: solution.report.elapsed.as_secs_f64(),
+            solve_seconds,
+            force_evaluations: solution.report.force_evaluations,
+            linear_iterations: solution.report.linear_iterations,
             contact_seconds: c.contact.as_ref().map_or(0.0, |sc| sc.elapsed.as_secs_f64()),
             error_estimate: solution.report.err,
             max_penetration_before,
