@@ -7,6 +7,9 @@
 //!   wall time.
 //! * `bench contact`: the paper's contact benchmark for every handler, table written to
 //!   `docs/contact-bench.md`.
+//! * `bench e2e`: every contact fixture solved by DR and by Newton–Krylov in child
+//!   processes: preparation and solve times, iterations, accuracy against CalculiX, peak
+//!   memory, speed-up (table in `docs/benchmarks.md`).
 //!
 //! * `validate`: every reference case in one table, written to `docs/validation.md`.
 //! * `chart`: speed against accuracy over mesh density, element, DR tolerance, contact
@@ -20,6 +23,7 @@
 //! `cargo run --release`.
 
 mod bench_contact;
+mod bench_e2e;
 mod bench_solver;
 mod chart;
 mod deps;
@@ -37,6 +41,9 @@ Commands:
   deps            check the workspace crate graph against the layering rules
   bench solver    kernel ns/element-step (1 vs 2 threads), DR vs Newton (release)
   bench contact   contact handlers on the paper's benchmark (writes docs/contact-bench.md)
+  bench e2e       [--case NAME] [--repeat N] every contact fixture solved by DR (baseline) and
+                  Newton-Krylov (default): preparation, solve, iterations, accuracy against
+                  CalculiX, peak memory, speed-up (writes docs/benchmarks.md)
   validate        [--quick] every reference case (closed forms, DR vs Newton, contact vs brute
                   force, DR + contact vs CalculiX); writes docs/validation.md (release)
   chart           [--case NAME] speed vs accuracy: mesh density, element, DR tolerance, contact
@@ -93,8 +100,9 @@ fn main() -> ExitCode {
         Some("bench") => match args.get(1).map(String::as_str) {
             Some("solver") => report(bench_solver::run(), "bench solver"),
             Some("contact") => report(bench_contact::main(), "bench contact"),
+            Some("e2e") => report(bench_e2e::main(&args[2..]), "bench e2e"),
             _ => {
-                eprintln!("bench what? `cargo xtask bench solver` or `cargo xtask bench contact`");
+                eprintln!("bench what? `cargo xtask bench solver`, `bench contact` or `bench e2e`");
                 ExitCode::from(2)
             }
         },

@@ -4,8 +4,10 @@
 //! outside the skull. The last must never happen; the test below runs the quick rows and
 //! asserts it.
 //!
-//! Rows (each a parameter swept on one scene):
-//! * DR time step as a multiple of the element-bound critical step, 0.5…3;
+//! Rows (each a parameter swept on one scene; most for both solvers, Dynamic Relaxation and
+//! Newton–Krylov):
+//! * DR time step as a multiple of the element-bound critical step, 0.5…3; for
+//!   Newton–Krylov, which has no time step, how loosely its linear systems are solved;
 //! * Poisson's ratio 0.45…0.4999 for T4 and for T4ANP (T4 locks: its deviation from T4ANP
 //!   is recorded);
 //! * H8 hourglass control on and off;
@@ -21,7 +23,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use bs_cli::check::Prepared;
-use bs_cli::scene::{Algorithm, ElementChoice};
+use bs_cli::scene::{Algorithm, ElementChoice, SolverKind};
 use bs_cli::study::{ContactChoice, Failure, Outcome, Variant, difference};
 use bs_dr::SolveError;
 use bs_mesh::io::Fields;
@@ -65,8 +67,7 @@ pub struct Cell {
 
 /// The short name of a solver error.
 pub fn guard_name(e: &SolveError) -> String {
-    let s = format!("{e:?}");
-    s.split([' ', '{', '(']).next().unwrap_or("error").to_string()
+    e.kind().to_string()
 }
 
 /// Classifies a variant's result. A returned result must be finite, have no inverted
@@ -225,7 +226,7 @@ fn cell(row: &str, value: String, r: &Result<Outcome, Failure>, tol: f64, note: 
     let verdict = classify(r, tol);
     let steps = r.as_ref().map_or(0, |o| o.steps);
     let note = match (r, note.is_empty()) {
-        (Err(Failure::Solve(e)), _) => step_of(e).map_or(note.clone(), |s| format!("at step {s}")),
+        (Err(Failure::Solve(e)), _) => e.step().map_or(note.clone(), |s| format!("at step {s}")),
         _ => note,
     };
     let c = Cell { row: row.into(), value, verdict, steps, note, ablation: false };
@@ -238,17 +239,6 @@ fn cell(row: &str, value: String, r: &Result<Outcome, Failure>, tol: f64, note: 
         c.note
     );
     c
-}
-
-fn step_of(e: &SolveError) -> Option<usize> {
-    match e {
-        SolveError::NotFinite { step }
-        | SolveError::ElementInverted { step, .. }
-        | SolveError::Unstable { step, .. }
-        | SolveError::Diverged { step, .. } => Some(*step),
-        SolveError::NoConvergence { steps, .. } => Some(*steps),
-        _ => None,
-    }
 }
 
 /// The verdict in words.
@@ -269,77 +259,106 @@ pub fn run(scope: Scope) -> Result<Vec<Cell>, String> {
     result
 }
 
+const DR: Option<SolverKind> = Some(SolverKind::Dr);
+const NK: Option<SolverKind> = Some(SolverKind::NewtonKrylov);
+
+/// The label of a solver in row names.
+fn label(solver: Option<SolverKind>) -> &'static str {
+    if solver == NK { "Newton-Krylov" } else { "DR" }
+}
+
 fn rows(scope: Scope, dir: &Path) -> Result<Vec<Cell>, String> {
     let mut cells = Vec::new();
     let tol = 1e-3;
     let t4 = indentation(dir, true, 8.0)?;
 
-    // Time step: the element bound is a lower bound of the critical step (on this mesh the
-    // true one is ≈1.6× it), so 0.5–1.25 must converge and ≥ 2 must be stopped.
-    let row = "time step / element-bound critical";
+    // Time step (DR): the element bound is a lower bound of the critical step (on this mesh
+    // the true one is ≈1.6× it), so 0.5–1.25 must converge and ≥ 2 must be stopped.
+    let row = "DR time step / element-bound critical";
     for f in [0.5, 0.8, 1.0, 1.25, 1.5, 2.0, 2.5, 3.0] {
         let v = Variant {
             element: Some(ElementChoice::T4anp),
             step_fraction: Some(f),
+            solver: DR,
             ..Variant::default()
         };
         cells.push(cell(row, format!("{f}x"), &v.solve(&t4), tol, String::new()));
     }
+    // Newton–Krylov has no time step; its counterpart is how loosely the inner linear
+    // systems may be solved: from accurate to barely solved, it must converge or stop.
+    let row = "Newton-Krylov forcing (max GMRES relative residual)";
+    for eta in [0.01, 0.1, 0.5, 0.9] {
+        let v = Variant {
+            element: Some(ElementChoice::T4anp),
+            forcing_max: Some(eta),
+            solver: NK,
+            ..Variant::default()
+        };
+        cells.push(cell(row, format!("{eta}"), &v.solve(&t4), tol, String::new()));
+    }
 
     // Growing indentation of a 40 mm block until an element inverts.
-    let row = "indentation depth (40 mm block)";
-    for depth in [8.0, 16.0, 24.0, 30.0, 34.0] {
-        let p = match indentation(dir, true, depth) {
-            Ok(p) => p,
-            // `check` refuses the scene (e.g. the unit sanity check): a guard too.
-            Err(e) => {
-                let r = Err(Failure::Setup(e));
-                cells.push(cell(row, format!("{depth} mm"), &r, tol, String::new()));
-                continue;
-            }
-        };
-        let v = Variant { element: Some(ElementChoice::T4anp), ..Variant::default() };
-        let r = v.solve(&p);
-        let note = r.as_ref().map_or(String::new(), |o| format!("min J {:.2}", o.min_volume_ratio));
-        cells.push(cell(row, format!("{depth} mm"), &r, tol, note));
+    for solver in [DR, NK] {
+        let row = format!("indentation depth (40 mm block), {}", label(solver));
+        for depth in [8.0, 16.0, 24.0, 30.0, 34.0] {
+            let p = match indentation(dir, true, depth) {
+                Ok(p) => p,
+                // `check` refuses the scene (e.g. the unit sanity check): a guard too.
+                Err(e) => {
+                    let r = Err(Failure::Setup(e));
+                    cells.push(cell(&row, format!("{depth} mm"), &r, tol, String::new()));
+                    continue;
+                }
+            };
+            let v = Variant { element: Some(ElementChoice::T4anp), solver, ..Variant::default() };
+            let r = v.solve(&p);
+            let note =
+                r.as_ref().map_or(String::new(), |o| format!("min J {:.2e}", o.min_volume_ratio));
+            cells.push(cell(&row, format!("{depth} mm"), &r, tol, note));
+        }
     }
 
     // Sharp skull corners: the paper's handler with and without the §3.2 lists, brute
-    // force as the reference.
+    // force as the reference of each solver. (The block is squeezed 20 % into a tight box
+    // with sharp edges; the two solvers may land in different equilibria of this folded
+    // state, so each is judged against its own brute-force run.)
     let boxed = boxed(dir)?;
-    let row = "sharp corners (box skull)";
-    let brute = Variant {
-        contact: Some(ContactChoice::Handler(Algorithm::BruteForce)),
-        ..Variant::default()
-    }
-    .solve(&boxed);
-    let brute_u = brute.as_ref().ok().map(|o| o.displacements.clone());
     let in_contact = |r: &Result<Outcome, Failure>| {
         r.as_ref().map_or(String::new(), |o| format!("{} in contact", o.nodes_in_contact))
     };
-    cells.push(cell(row, "brute force".into(), &brute, tol, in_contact(&brute)));
-    for (label, lists) in [("lists on", true), ("lists off", false)] {
-        let v = Variant { additional_lists: Some(lists), ..Variant::default() };
-        let r = v.solve(&boxed);
-        let note = match (&r, &brute_u) {
-            (Ok(o), Some(b)) => {
-                format!("max |u - brute| {:.1e} mm", difference(&o.displacements, b, None).1)
-            }
-            _ => String::new(),
-        };
-        let mut c = cell(row, label.into(), &r, tol, note);
-        c.ablation = !lists;
-        // A handler solves the same discrete problem as brute force: a result farther than
-        // 10× the tolerance from brute force's is a missed penetration corrected to the
-        // wrong place, returned as if right.
-        if let (Ok(o), Some(b), Verdict::Converged) = (&r, &brute_u, &c.verdict) {
-            let dev = difference(&o.displacements, b, None).1;
-            if dev > 10.0 * tol {
-                c.verdict = Verdict::Silent(format!("differs from brute force by {dev:.2e}"));
-                println!("  -> {}", verdict_text(&c.verdict));
-            }
+    for solver in [DR, NK] {
+        let row = format!("sharp corners (box skull), {}", label(solver));
+        let brute = Variant {
+            contact: Some(ContactChoice::Handler(Algorithm::BruteForce)),
+            solver,
+            ..Variant::default()
         }
-        cells.push(c);
+        .solve(&boxed);
+        let brute_u = brute.as_ref().ok().map(|o| o.displacements.clone());
+        cells.push(cell(&row, "brute force".into(), &brute, tol, in_contact(&brute)));
+        for (name, lists) in [("lists on", true), ("lists off", false)] {
+            let v = Variant { additional_lists: Some(lists), solver, ..Variant::default() };
+            let r = v.solve(&boxed);
+            let note = match (&r, &brute_u) {
+                (Ok(o), Some(b)) => {
+                    format!("max |u - brute| {:.1e} mm", difference(&o.displacements, b, None).1)
+                }
+                _ => String::new(),
+            };
+            let mut c = cell(&row, name.into(), &r, tol, note);
+            c.ablation = !lists;
+            // A handler solves the same discrete problem as brute force: a result farther
+            // than 10× the tolerance from brute force's is a missed penetration corrected to
+            // the wrong place, returned as if right.
+            if let (Ok(o), Some(b), Verdict::Converged) = (&r, &brute_u, &c.verdict) {
+                let dev = difference(&o.displacements, b, None).1;
+                if dev > 10.0 * tol {
+                    c.verdict = Verdict::Silent(format!("differs from brute force by {dev:.2e}"));
+                    println!("  -> {}", verdict_text(&c.verdict));
+                }
+            }
+            cells.push(c);
+        }
     }
 
     if scope == Scope::Quick {
@@ -347,28 +366,36 @@ fn rows(scope: Scope, dir: &Path) -> Result<Vec<Cell>, String> {
     }
 
     // Poisson's ratio: T4 locks, T4ANP does not; deviation of T4 from T4ANP recorded.
-    for element in [ElementChoice::T4, ElementChoice::T4anp] {
-        let row =
-            format!("Poisson ratio, {}", if element == ElementChoice::T4 { "T4" } else { "T4ANP" });
-        for nu in [0.45, 0.49, 0.495, 0.499, 0.4999] {
-            let v =
-                Variant { element: Some(element), poisson_ratio: Some(nu), ..Variant::default() };
-            let r = v.solve(&t4);
-            let note = if element == ElementChoice::T4 {
-                let anp = Variant { element: Some(ElementChoice::T4anp), ..v.clone() }.solve(&t4);
-                match (&r, &anp) {
-                    (Ok(a), Ok(b)) => {
-                        format!(
+    for solver in [DR, NK] {
+        for element in [ElementChoice::T4, ElementChoice::T4anp] {
+            let row = format!(
+                "Poisson ratio, {}, {}",
+                if element == ElementChoice::T4 { "T4" } else { "T4ANP" },
+                label(solver)
+            );
+            for nu in [0.45, 0.49, 0.495, 0.499, 0.4999] {
+                let v = Variant {
+                    element: Some(element),
+                    poisson_ratio: Some(nu),
+                    solver,
+                    ..Variant::default()
+                };
+                let r = v.solve(&t4);
+                let note = if element == ElementChoice::T4 {
+                    let anp =
+                        Variant { element: Some(ElementChoice::T4anp), ..v.clone() }.solve(&t4);
+                    match (&r, &anp) {
+                        (Ok(a), Ok(b)) => format!(
                             "mean |u - T4ANP| {:.2} mm",
                             difference(&a.displacements, &b.displacements, None).0
-                        )
+                        ),
+                        _ => String::new(),
                     }
-                    _ => String::new(),
-                }
-            } else {
-                String::new()
-            };
-            cells.push(cell(&row, format!("{nu}"), &r, tol, note));
+                } else {
+                    String::new()
+                };
+                cells.push(cell(&row, format!("{nu}"), &r, tol, note));
+            }
         }
     }
 
@@ -378,21 +405,21 @@ fn rows(scope: Scope, dir: &Path) -> Result<Vec<Cell>, String> {
     // than the default's has let hourglass modes in, a wrong field returned as converged.
     // Neither reduced setting is reachable from a scene (they are ablations).
     let h8 = indentation(dir, false, 8.0)?;
-    let row = "H8 hourglass coefficient";
+    let row = "H8 hourglass coefficient, DR";
     let default = bs_dr::ModelOptions::default().hourglass;
-    let anp = Variant { element: Some(ElementChoice::T4anp), ..Variant::default() }
+    let anp = Variant { element: Some(ElementChoice::T4anp), solver: DR, ..Variant::default() }
         .solve(&t4)
         .map_err(|e| format!("T4ANP block: {e}"))?;
     let off_t4anp = |r: &Result<Outcome, Failure>| {
         r.as_ref().ok().map(|o| difference(&o.displacements, &anp.displacements, None).1)
     };
-    let controlled = off_t4anp(&Variant::default().solve(&h8));
-    for (label, k) in [("default", default), ("default/10", default / 10.0), ("0 (off)", 0.0)] {
-        let v = Variant { hourglass: Some(k), ..Variant::default() };
+    let controlled = off_t4anp(&Variant { solver: DR, ..Variant::default() }.solve(&h8));
+    for (name, k) in [("default", default), ("default/10", default / 10.0), ("0 (off)", 0.0)] {
+        let v = Variant { hourglass: Some(k), solver: DR, ..Variant::default() };
         let r = v.solve(&h8);
         let dev = off_t4anp(&r);
         let note = dev.map_or(String::new(), |d| format!("max |u - T4ANP| {d:.2} mm"));
-        let mut c = cell(row, label.into(), &r, tol, note);
+        let mut c = cell(row, name.into(), &r, tol, note);
         c.ablation = k != default;
         if let (Some(d), Some(base), Verdict::Converged) = (dev, controlled, &c.verdict)
             && d > 3.0 * base
@@ -406,10 +433,13 @@ fn rows(scope: Scope, dir: &Path) -> Result<Vec<Cell>, String> {
     // The paper's ellipsoid, pushed 10–40 mm, with CalculiX's stored outcome beside it.
     let ell =
         Prepared::load(&root().join("fixtures/ellipsoid/scene.toml")).map_err(|e| e.to_string())?;
-    for ramp in [200, 800, 2000] {
-        let row = format!("ellipsoid load, DR ramp {ramp} steps");
+    let runs = [200, 800, 2000]
+        .map(|ramp| (format!("ellipsoid load, DR ramp {ramp} steps"), DR, Some(ramp)))
+        .into_iter()
+        .chain([("ellipsoid load, Newton-Krylov".to_string(), NK, None)]);
+    for (row, solver, ramp_steps) in runs {
         for f in [1.0, 2.0, 3.0, 4.0] {
-            let v = Variant { load_factor: Some(f), ramp_steps: Some(ramp), ..Variant::default() };
+            let v = Variant { load_factor: Some(f), ramp_steps, solver, ..Variant::default() };
             let r = v.solve(&ell);
             let note =
                 r.as_ref().map_or(String::new(), |o| format!("{} in contact", o.nodes_in_contact));
@@ -595,24 +625,37 @@ mod tests {
         };
         // Below the element bound DR is stable; at 3× it (≈ 1.9× the true critical step on
         // this mesh) it must be stopped as unstable.
-        assert_eq!(get("time step", "0.5x"), Some(Verdict::Converged));
-        assert_eq!(get("time step", "0.8x"), Some(Verdict::Converged));
+        assert_eq!(get("DR time step", "0.5x"), Some(Verdict::Converged));
+        assert_eq!(get("DR time step", "0.8x"), Some(Verdict::Converged));
         assert!(
-            matches!(get("time step", "3x"), Some(Verdict::Guard(g)) if g != "ContactCheck"),
+            matches!(get("DR time step", "3x"), Some(Verdict::Guard(g)) if g != "ContactCheck"),
             "{cells:#?}"
         );
-        // A 40 mm block indented 34 mm by a 20 mm patch cannot keep its elements positive.
-        assert!(
-            matches!(get("indentation", "34 mm"), Some(Verdict::Guard(g)) if g == "ElementInverted"),
-            "{cells:#?}"
-        );
-        assert_eq!(get("indentation", "8 mm"), Some(Verdict::Converged));
-        // With the lists the paper handler finds every penetration at the box's corners.
-        assert_eq!(get("sharp corners", "lists on"), Some(Verdict::Converged));
-        assert_eq!(get("sharp corners", "brute force"), Some(Verdict::Converged));
-        // Without them it misplaces nodes; that must be stopped (here the misplaced nodes
-        // invert an element), never returned.
-        assert!(matches!(get("sharp corners", "lists off"), Some(Verdict::Guard(_))), "{cells:#?}");
+        // Newton–Krylov converges however loosely its linear systems are solved.
+        for eta in ["0.01", "0.1", "0.5", "0.9"] {
+            assert_eq!(get("Newton-Krylov forcing", eta), Some(Verdict::Converged), "{eta}");
+        }
+        for solver in ["DR", "Newton-Krylov"] {
+            // A 40 mm block indented 34 mm by a 20 mm patch cannot keep its elements
+            // positive.
+            let indentation = format!("indentation depth (40 mm block), {solver}");
+            assert!(
+                matches!(get(&indentation, "34 mm"), Some(Verdict::Guard(g)) if g == "ElementInverted"),
+                "{solver}: {cells:#?}"
+            );
+            assert_eq!(get(&indentation, "8 mm"), Some(Verdict::Converged), "{solver}");
+            // With the lists the paper handler finds every penetration at the box's corners.
+            let corners = format!("sharp corners (box skull), {solver}");
+            assert_eq!(get(&corners, "lists on"), Some(Verdict::Converged), "{solver}");
+            assert_eq!(get(&corners, "brute force"), Some(Verdict::Converged), "{solver}");
+            // Without them it misplaces nodes; that must be stopped (DR: the misplaced nodes
+            // invert an element; Newton–Krylov: its active set never settles), never
+            // returned.
+            assert!(
+                matches!(get(&corners, "lists off"), Some(Verdict::Guard(_))),
+                "{solver}: {cells:#?}"
+            );
+        }
     }
 
     /// The generated geometry: the block's volume and orientation, and the box skull is a

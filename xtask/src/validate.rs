@@ -105,9 +105,13 @@ fn closed_forms(add: &mut dyn FnMut(Row)) -> Result<(), String> {
     let l = bs_material::closed_form::neo_hookean_uniaxial_lateral_stretch(lambda, mu, kappa)
         .ok_or("no lateral stretch")?;
     let gamma = 0.2;
-    for element in ["t4", "t4anp", "h8"] {
+    for (element, solver) in ["t4", "t4anp", "h8"]
+        .into_iter()
+        .flat_map(|e| [(e, SolverKind::NewtonKrylov), (e, SolverKind::Dr)])
+    {
+        let v = Variant { solver: Some(solver), ..Variant::default() };
         let p = load(&format!("fixtures/cube/uniaxial-{element}.toml"))?;
-        let o = solve(&p, &Variant::default(), "uniaxial")?;
+        let o = solve(&p, &v, "uniaxial")?;
         let worst = p
             .mesh
             .nodes
@@ -118,14 +122,14 @@ fn closed_forms(add: &mut dyn FnMut(Row)) -> Result<(), String> {
             })
             .fold(0.0, f64::max);
         add(Row {
-            case: format!("closed form / uniaxial {element}"),
+            case: format!("closed form / uniaxial {element} {}", solver.name()),
             quantity: "max nodal error / max |u|".into(),
             value: worst / (1.0 - lambda),
             tolerance: 1e-6,
             unit: "",
         });
         let p = load(&format!("fixtures/cube/shear-{element}.toml"))?;
-        let o = solve(&p, &Variant::default(), "shear")?;
+        let o = solve(&p, &v, "shear")?;
         let worst = p
             .mesh
             .nodes
@@ -134,7 +138,7 @@ fn closed_forms(add: &mut dyn FnMut(Row)) -> Result<(), String> {
             .map(|(x, u)| (u - Vector3::new(gamma * x.y, 0.0, 0.0)).amax())
             .fold(0.0, f64::max);
         add(Row {
-            case: format!("closed form / shear {element}"),
+            case: format!("closed form / shear {element} {}", solver.name()),
             quantity: "max nodal error / max |u|".into(),
             value: worst / gamma,
             tolerance: 1e-6,
@@ -144,10 +148,11 @@ fn closed_forms(add: &mut dyn FnMut(Row)) -> Result<(), String> {
     Ok(())
 }
 
-/// DR against Newton on the coarse ellipsoid (T4, its 10 mm push, no skull: Newton needs no
-/// contact). Both solve the same discrete equations; DR stops when its error estimate is
-/// below 1e-5 mm, Newton at 1e-10 of the load. Tolerance: 10× the DR tolerance, because the
-/// estimate extrapolates the slowest mode and may under-read by a small factor.
+/// DR and Newton–Krylov against Newton on the coarse ellipsoid (T4, its 10 mm push, no
+/// skull: Newton needs no contact). All solve the same discrete equations; DR and
+/// Newton–Krylov stop when their error estimate is below 1e-5 mm, Newton at 1e-10 of the
+/// load. Tolerance: 10× the tolerance, because DR's estimate extrapolates the slowest mode
+/// and may under-read by a small factor.
 fn dr_vs_newton(add: &mut dyn FnMut(Row)) -> Result<(), String> {
     let p = load("fixtures/ellipsoid/scene.toml")?;
     let tol = 1e-5;
@@ -157,17 +162,19 @@ fn dr_vs_newton(add: &mut dyn FnMut(Row)) -> Result<(), String> {
         tolerance: Some(tol),
         ..Variant::default()
     };
-    let dr = solve(&p, &base, "DR")?;
     let newton =
         solve(&p, &Variant { solver: Some(SolverKind::Newton), ..base.clone() }, "Newton")?;
-    let (_, max) = difference(&dr.displacements, &newton.displacements, None);
-    add(Row {
-        case: "DR vs Newton / ellipsoid coarse t4".into(),
-        quantity: "max nodal difference".into(),
-        value: max,
-        tolerance: 10.0 * tol,
-        unit: "mm",
-    });
+    for solver in [SolverKind::Dr, SolverKind::NewtonKrylov] {
+        let o = solve(&p, &Variant { solver: Some(solver), ..base.clone() }, solver.name())?;
+        let (_, max) = difference(&o.displacements, &newton.displacements, None);
+        add(Row {
+            case: format!("{} vs Newton / ellipsoid coarse t4", solver.name()),
+            quantity: "max nodal difference".into(),
+            value: max,
+            tolerance: 10.0 * tol,
+            unit: "mm",
+        });
+    }
     Ok(())
 }
 
@@ -244,23 +251,29 @@ fn surface_point(s: &TriSurface, rng: &mut Rng) -> Point3<f64> {
 }
 
 /// Whole DR + contact solves of the coarse ellipsoid (T4ANP, 10 mm push) with each handler
-/// against the brute-force handler. Each converged solution is within the DR tolerance of
-/// the same discrete equilibrium, so two differ by at most twice the tolerance (×5 for the
-/// estimate's extrapolation, as above). The result must also leave no node outside the
-/// skull by more than the tolerance.
+/// in DR's per-step enforcement, and the Newton–Krylov solve, against DR with the
+/// brute-force handler. Each converged solution is within its tolerance of the same discrete
+/// equilibrium, so two differ by at most twice the tolerance (×5 for DR's estimate's
+/// extrapolation, as above). The result must also leave no node outside the skull by more
+/// than the tolerance.
 fn handler_solves(add: &mut dyn FnMut(Row)) -> Result<(), String> {
     let p = load("fixtures/ellipsoid/scene.toml")?;
     let tol = 1e-4;
-    let with = |a: Algorithm| Variant {
+    let with = |a: Algorithm, solver: SolverKind| Variant {
         contact: Some(ContactChoice::Handler(a)),
         tolerance: Some(tol),
+        solver: Some(solver),
         ..Variant::default()
     };
-    let brute = solve(&p, &with(Algorithm::BruteForce), "brute force")?;
-    for a in [Algorithm::Paper, Algorithm::Coherent, Algorithm::Parry] {
-        let o = solve(&p, &with(a), a.name())?;
+    let brute = solve(&p, &with(Algorithm::BruteForce, SolverKind::Dr), "brute force")?;
+    let runs = [Algorithm::Paper, Algorithm::Coherent, Algorithm::Parry]
+        .map(|a| (a, SolverKind::Dr))
+        .into_iter()
+        .chain([(Algorithm::Coherent, SolverKind::NewtonKrylov)]);
+    for (a, solver) in runs {
+        let o = solve(&p, &with(a, solver), a.name())?;
         let (_, max) = difference(&o.displacements, &brute.displacements, None);
-        let case = format!("contact solve / {} vs brute-force", a.name());
+        let case = format!("contact solve / {} {} vs dr brute-force", solver.name(), a.name());
         add(Row {
             case: case.clone(),
             quantity: "max nodal difference".into(),
@@ -347,8 +360,8 @@ pub fn facet_allowance(skull: &TriSurface) -> Result<(f64, f64), String> {
     Ok((if n == 0 { 0.0 } else { sum / n as f64 }, max))
 }
 
-/// DR + kinematic contact (T4 on the reference's own mesh: CalculiX's C3D4 is the same
-/// element) against CalculiX with penalty slope K = 10. The tolerance adds the sources of
+/// Newton–Krylov and DR, both with the kinematic contact (T4 on the reference's own mesh:
+/// CalculiX's C3D4 is the same element), against CalculiX with penalty slope K = 10. The tolerance adds the sources of
 /// legitimate difference, each from the physics or the numerics, none from our result:
 /// * the reference's penalty sensitivity |u(K=1) − u(K=10)| (the penalty error falls as 1/K,
 ///   so K = 10 is within a ninth of that of the exact-contact limit);
@@ -375,44 +388,49 @@ fn calculix(add: &mut dyn FnMut(Row)) -> Result<(), String> {
         let u10 = field(&p, &k10, &label)?;
         let u1 = field(&p, &k1, &label)?;
         let (sens_mean, sens_max) = difference(&u1, &u10, None);
-        let v = Variant {
-            element: Some(ElementChoice::T4),
-            tolerance: Some(CCX_DR_TOLERANCE),
-            ..Variant::default()
-        };
-        let o = solve(&p, &v, &label)?;
-        let (mean, max) = difference(&o.displacements, &u10, None);
         let skull = p.skull.as_ref().ok_or("the scene has no skull")?;
         let (facet_mean, facet_max) = facet_allowance(skull)?;
-        println!(
-            "{label}: penalty sensitivity mean {sens_mean:.2e} max {sens_max:.2e} mm; facet \
-             allowance mean {facet_mean:.2e} max {facet_max:.2e} mm; DR {} steps {:.1} s; ccx \
-             {:.1} s",
-            o.steps,
-            o.solve_seconds,
-            k10.meta["wall_seconds"].as_f64().unwrap_or(f64::NAN)
-        );
-        add(Row {
-            case: label.clone(),
-            quantity: "mean nodal |u − u_ccx(K=10)|".into(),
-            value: mean,
-            tolerance: (sens_mean + CCX_DR_TOLERANCE + facet_mean).min(0.03),
-            unit: "mm",
-        });
-        add(Row {
-            case: label.clone(),
-            quantity: "max nodal |u − u_ccx(K=10)|".into(),
-            value: max,
-            tolerance: (sens_max + CCX_DR_TOLERANCE + facet_max).min(0.3),
-            unit: "mm",
-        });
-        add(Row {
-            case: label,
-            quantity: "max penetration of the DR result".into(),
-            value: o.max_penetration_after,
-            tolerance: CCX_DR_TOLERANCE,
-            unit: "mm",
-        });
+        for solver in [SolverKind::NewtonKrylov, SolverKind::Dr] {
+            let v = Variant {
+                element: Some(ElementChoice::T4),
+                tolerance: Some(CCX_DR_TOLERANCE),
+                solver: Some(solver),
+                ..Variant::default()
+            };
+            let o = solve(&p, &v, &label)?;
+            let (mean, max) = difference(&o.displacements, &u10, None);
+            println!(
+                "{label} {}: penalty sensitivity mean {sens_mean:.2e} max {sens_max:.2e} mm; \
+                 facet allowance mean {facet_mean:.2e} max {facet_max:.2e} mm; {} iterations \
+                 {:.1} s; ccx {:.1} s",
+                solver.name(),
+                o.steps,
+                o.solve_seconds,
+                k10.meta["wall_seconds"].as_f64().unwrap_or(f64::NAN)
+            );
+            let case = format!("{label} / {} t4", solver.name());
+            add(Row {
+                case: case.clone(),
+                quantity: "mean nodal |u − u_ccx(K=10)|".into(),
+                value: mean,
+                tolerance: (sens_mean + CCX_DR_TOLERANCE + facet_mean).min(0.03),
+                unit: "mm",
+            });
+            add(Row {
+                case: case.clone(),
+                quantity: "max nodal |u − u_ccx(K=10)|".into(),
+                value: max,
+                tolerance: (sens_max + CCX_DR_TOLERANCE + facet_max).min(0.3),
+                unit: "mm",
+            });
+            add(Row {
+                case,
+                quantity: "max penetration of the result".into(),
+                value: o.max_penetration_after,
+                tolerance: CCX_DR_TOLERANCE,
+                unit: "mm",
+            });
+        }
     }
     Ok(())
 }

@@ -29,6 +29,8 @@ pub struct SolveSettings {
     pub max_steps: Option<usize>,
     /// DR steps of the load ramp.
     pub ramp_steps: usize,
+    /// Newton–Krylov's largest linear-solve relative residual (its default when `None`).
+    pub forcing_max: Option<f64>,
 }
 
 impl SolveSettings {
@@ -40,6 +42,7 @@ impl SolveSettings {
             step_fraction: DrParams::default().step_fraction,
             max_steps: None,
             ramp_steps: p.scene.solver.ramp_steps,
+            forcing_max: None,
         }
     }
 }
@@ -50,10 +53,13 @@ fn newton_krylov(c: &Composed, s: &SolveSettings) -> NewtonKrylov {
 }
 
 fn newton_krylov_params(s: &SolveSettings, load_scale: f64) -> NewtonKrylov {
+    let defaults = NewtonKrylovParams::default();
     NewtonKrylov::new(NewtonKrylovParams {
         tolerance: s.tolerance / load_scale,
-        max_iterations: s.max_steps.unwrap_or(NewtonKrylovParams::default().max_iterations),
-        ..NewtonKrylovParams::default()
+        max_iterations: s.max_steps.unwrap_or(defaults.max_iterations),
+        forcing_max: s.forcing_max.unwrap_or(defaults.forcing_max),
+        forcing_min: s.forcing_max.map_or(defaults.forcing_min, |f| defaults.forcing_min.min(f)),
+        ..defaults
     })
 }
 
@@ -224,6 +230,8 @@ pub struct Variant {
     pub max_steps: Option<usize>,
     /// DR steps of the load ramp.
     pub ramp_steps: Option<usize>,
+    /// Newton–Krylov's largest linear-solve relative residual.
+    pub forcing_max: Option<f64>,
 }
 
 /// Why a variant produced no result.
@@ -368,6 +376,7 @@ impl Variant {
             settings.step_fraction = f;
         }
         settings.max_steps = self.max_steps;
+        settings.forcing_max = self.forcing_max;
         prepare_solver(&mut c, &settings).map_err(Failure::Solve)?;
         let prepare_seconds = started.elapsed().as_secs_f64();
         let solving = Instant::now();

@@ -206,6 +206,39 @@ pub enum SolveError {
     },
 }
 
+impl SolveError {
+    /// A short stable name of the error kind (`"ElementInverted"`, `"NoConvergence"`, …), for
+    /// tables and scripts.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            SolveError::InvalidParams { .. } => "InvalidParams",
+            SolveError::LoadMismatch { .. } => "LoadMismatch",
+            SolveError::NotFinite { .. } => "NotFinite",
+            SolveError::ElementInverted { .. } => "ElementInverted",
+            SolveError::Unstable { .. } => "Unstable",
+            SolveError::Diverged { .. } => "Diverged",
+            SolveError::NoConvergence { .. } => "NoConvergence",
+            SolveError::SingularTangent { .. } => "SingularTangent",
+            SolveError::Preconditioner { .. } => "Preconditioner",
+            SolveError::Unsupported { .. } => "Unsupported",
+        }
+    }
+
+    /// The step (DR) or iteration (Newton solvers) at which the solve stopped, when it got
+    /// that far.
+    pub fn step(&self) -> Option<usize> {
+        match self {
+            SolveError::NotFinite { step }
+            | SolveError::ElementInverted { step, .. }
+            | SolveError::Unstable { step, .. }
+            | SolveError::Diverged { step, .. } => Some(*step),
+            SolveError::NoConvergence { steps, .. } => Some(*steps),
+            SolveError::SingularTangent { iteration, .. } => Some(*iteration),
+            _ => None,
+        }
+    }
+}
+
 /// A static solver: DR and Newton are interchangeable behind this trait.
 pub trait Solver {
     /// Solver name for reports.

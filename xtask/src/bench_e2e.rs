@@ -1,0 +1,272 @@
+//! `cargo xtask bench e2e`: the whole brain-shift computation, the paper's solver (Dynamic
+//! Relaxation, the baseline) against the default (Newton–Krylov), on every contact fixture.
+//!
+//! Each case and solver runs in a child process of this program (`bench e2e --one CASE
+//! SOLVER OUT`), so that each reports its own peak memory; the children run one after the
+//! other, so the ratios compare runs of the same session on the same machine. Per run:
+//! * preparation: what depends only on mesh, materials and skull (model precomputation,
+//!   contact search structures, the Newton–Krylov preconditioner);
+//! * solve: from known displacements to a converged, checked result (solver and the final
+//!   contact check);
+//! * iterations (DR steps or Newton iterations), force evaluations, GMRES iterations;
+//! * mean and max nodal distance to the stored CalculiX K = 10 reference (on the meshes it
+//!   was computed on; on the other MNI152 densities the reference is carried over by
+//!   interpolation, so that column also holds the mesh-to-mesh difference);
+//! * largest penetration of the written result, peak resident memory;
+//! * and, per case, the speed-up of the solve against the baseline and the difference
+//!   between the two answers.
+//!
+//! The table is printed and written into `docs/benchmarks.md` between its `e2e` markers.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use bs_cli::check::Prepared;
+use bs_cli::scene::SolverKind;
+use bs_cli::study::{Variant, difference};
+use bs_mesh::{TetLocator, Vector3, transfer};
+
+use crate::chart::replace_block;
+use crate::validate::{field, read_reference, root};
+
+/// The cases: name, scene, and the scene whose mesh the CalculiX reference was computed on.
+const CASES: [(&str, &str, &str); 5] = [
+    ("sphere-shell", "fixtures/sphere-shell/scene.toml", "sphere-shell"),
+    ("ellipsoid (coarse)", "fixtures/ellipsoid/scene.toml", "ellipsoid"),
+    ("mni152 coarse", "fixtures/mni152/scene-coarse.toml", "mni152"),
+    ("mni152 default", "fixtures/mni152/scene.toml", "mni152"),
+    ("mni152 fine", "fixtures/mni152/scene-fine.toml", "mni152"),
+];
+
+/// One run, as a child reports it.
+#[derive(Debug, Clone)]
+struct Run {
+    prepare: f64,
+    solve: f64,
+    iterations: usize,
+    forces: usize,
+    linear: usize,
+    ccx_mean: f64,
+    ccx_max: f64,
+    penetration: f64,
+    peak_mib: f64,
+    nodes: usize,
+    elements: usize,
+    displacements: PathBuf,
+}
+
+fn solver_kind(name: &str) -> Result<SolverKind, String> {
+    match name {
+        "dr" => Ok(SolverKind::Dr),
+        "newton-krylov" => Ok(SolverKind::NewtonKrylov),
+        other => Err(format!("unknown solver {other}")),
+    }
+}
+
+/// Peak resident memory of this process (MiB), from `/proc/self/status`.
+fn peak_mib() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .and_then(|l| l.split_whitespace().nth(1))
+                .and_then(|kb| kb.parse::<f64>().ok())
+        })
+        .map_or(f64::NAN, |kb| kb / 1024.0)
+}
+
+/// The CalculiX K = 10 field on `p`'s nodes: read on its own mesh, interpolated otherwise.
+fn ccx_field(p: &Prepared, ccx_case: &str) -> Result<Option<Vec<Vector3<f64>>>, String> {
+    let dir = root().join("fixtures").join(ccx_case).join("reference");
+    let Some(r) = read_reference(&dir, "ccx-k10")? else { return Ok(None) };
+    let own = root().join("fixtures").join(ccx_case).join("scene.toml");
+    let own = Prepared::load(&own).map_err(|e| e.to_string())?;
+    let u = field(&own, &r, ccx_case)?;
+    if own.mesh.nodes.len() == p.mesh.nodes.len() && own.mesh.nodes == p.mesh.nodes {
+        return Ok(Some(u));
+    }
+    let locator = TetLocator::new(&own.mesh).map_err(|e| e.to_string())?;
+    Ok(Some(transfer(&locator, &u, &p.mesh.nodes)))
+}
+
+/// The child: one case with one solver; prints one line of key=value pairs.
+fn run_one(case: &str, solver: &str, out: &Path) -> Result<(), String> {
+    let (_, scene, ccx_case) =
+        CASES.iter().find(|c| c.0 == case).ok_or_else(|| format!("unknown case {case}"))?;
+    let p = Prepared::load(&root().join(scene)).map_err(|e| e.to_string())?;
+    let v = Variant { solver: Some(solver_kind(solver)?), ..Variant::default() };
+    let o = v.solve(&p).map_err(|e| format!("{case} {solver}: {e}"))?;
+    let (ccx_mean, ccx_max) = match ccx_field(&p, ccx_case)? {
+        Some(u) => difference(&o.displacements, &u, None),
+        None => (f64::NAN, f64::NAN),
+    };
+    let mut csv = String::with_capacity(o.displacements.len() * 64);
+    for d in &o.displacements {
+        csv.push_str(&format!("{:?},{:?},{:?}\n", d.x, d.y, d.z));
+    }
+    std::fs::write(out, csv).map_err(|e| format!("{}: {e}", out.display()))?;
+    println!(
+        "result prepare={} solve={} iterations={} forces={} linear={} ccx_mean={} ccx_max={} \
+         penetration={} peak_mib={} nodes={} elements={}",
+        o.prepare_seconds,
+        o.solve_seconds,
+        o.steps,
+        o.force_evaluations,
+        o.linear_iterations,
+        ccx_mean,
+        ccx_max,
+        o.max_penetration_after,
+        peak_mib(),
+        p.mesh.nodes.len(),
+        p.mesh.elements.len()
+    );
+    Ok(())
+}
+
+/// Runs a child and parses its result line.
+fn spawn(case: &str, solver: &str, out: &Path) -> Result<Run, String> {
+    let exe = std::env::current_exe().map_err(|e| e.to_string())?;
+    let output = Command::new(exe)
+        .args(["bench", "e2e", "--one", case, solver])
+        .arg(out)
+        .output()
+        .map_err(|e| e.to_string())?;
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    if !output.status.success() {
+        return Err(format!(
+            "{case} {solver} failed: {}{}",
+            stdout,
+            String::from_utf8_lossy(&output.stderr)
+        ));
+    }
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("result "))
+        .ok_or_else(|| format!("{case} {solver}: no result line in {stdout}"))?;
+    let get = |key: &str| -> Result<f64, String> {
+        line.split_whitespace()
+            .find_map(|kv| kv.strip_prefix(&format!("{key}=")))
+            .ok_or_else(|| format!("{case} {solver}: no {key}"))?
+            .parse::<f64>()
+            .map_err(|e| format!("{case} {solver}: {key}: {e}"))
+    };
+    Ok(Run {
+        prepare: get("prepare")?,
+        solve: get("solve")?,
+        iterations: get("iterations")? as usize,
+        forces: get("forces")? as usize,
+        linear: get("linear")? as usize,
+        ccx_mean: get("ccx_mean")?,
+        ccx_max: get("ccx_max")?,
+        penetration: get("penetration")?,
+        peak_mib: get("peak_mib")?,
+        nodes: get("nodes")? as usize,
+        elements: get("elements")? as usize,
+        displacements: out.to_path_buf(),
+    })
+}
+
+fn read_field(path: &Path) -> Result<Vec<Vector3<f64>>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    text.lines()
+        .map(|l| {
+            let v: Vec<f64> = l
+                .split(',')
+                .map(|s| s.parse::<f64>())
+                .collect::<Result<_, _>>()
+                .map_err(|e| e.to_string())?;
+            Ok(Vector3::new(v[0], v[1], v[2]))
+        })
+        .collect()
+}
+
+/// `cargo xtask bench e2e [--case NAME] [--repeat N]`.
+pub fn main(args: &[String]) -> Result<(), String> {
+    if args.first().map(String::as_str) == Some("--one") {
+        let [_, case, solver, out] = args else {
+            return Err("usage: bench e2e --one CASE SOLVER OUT".into());
+        };
+        return run_one(case, solver, Path::new(out));
+    }
+    let mut only: Option<String> = None;
+    let mut repeat = 1usize;
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--case" => only = it.next().cloned(),
+            "--repeat" => {
+                repeat = it.next().and_then(|s| s.parse().ok()).ok_or("--repeat needs a number")?
+            }
+            other => return Err(format!("unknown option {other}")),
+        }
+    }
+    let tmp = std::env::temp_dir().join(format!("bs-bench-e2e-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).map_err(|e| e.to_string())?;
+    println!(
+        "end-to-end benchmark: each case solved by DR (baseline) and Newton-Krylov (default), \
+         one child process per run, best of {repeat}; machine: {} threads available",
+        rayon::current_num_threads()
+    );
+    let mut rows = Vec::new();
+    for (case, _, _) in CASES {
+        if only.as_deref().is_some_and(|o| o != case) {
+            continue;
+        }
+        let mut best: Vec<Option<Run>> = vec![None, None];
+        for r in 0..repeat {
+            for (k, solver) in ["dr", "newton-krylov"].iter().enumerate() {
+                let out = tmp.join(format!("{}-{solver}-{r}.csv", case.replace(' ', "_")));
+                let run = spawn(case, solver, &out)?;
+                println!(
+                    "  {case:<20} {solver:<14} prepare {:>7.3} s  solve {:>8.3} s  {:>5} iterations",
+                    run.prepare, run.solve, run.iterations
+                );
+                if best[k].as_ref().is_none_or(|b| run.solve < b.solve) {
+                    best[k] = Some(run);
+                }
+            }
+        }
+        let (Some(dr), Some(nk)) = (best[0].take(), best[1].take()) else { continue };
+        let (mean, max) =
+            difference(&read_field(&dr.displacements)?, &read_field(&nk.displacements)?, None);
+        rows.push((case, dr, nk, mean, max));
+    }
+    let table = markdown(&rows);
+    println!("\n{table}");
+    if only.is_none() {
+        replace_block(&root().join("docs/benchmarks.md"), "e2e", &table)?;
+        println!("wrote docs/benchmarks.md");
+    }
+    let _ = std::fs::remove_dir_all(&tmp);
+    Ok(())
+}
+
+fn markdown(rows: &[(&str, Run, Run, f64, f64)]) -> String {
+    let mut s = String::from(
+        "| case | nodes / elements | solver | prepare s | solve s | iterations | force evals | GMRES its | vs CalculiX K=10 mean / max mm | max penetration mm | peak MiB | solve speed-up | NK vs DR mean / max mm |\n\
+         |---|---|---|---:|---:|---:|---:|---:|---|---:|---:|---:|---|\n",
+    );
+    for (case, dr, nk, mean, max) in rows {
+        for (name, r) in [("dr", dr), ("newton-krylov", nk)] {
+            let nk_row = name == "newton-krylov";
+            s.push_str(&format!(
+                "| {case} | {} / {} | {name} | {:.3} | {:.3} | {} | {} | {} | {:.4} / {:.4} | {:.1e} | {:.0} | {} | {} |\n",
+                r.nodes,
+                r.elements,
+                r.prepare,
+                r.solve,
+                r.iterations,
+                r.forces,
+                r.linear,
+                r.ccx_mean,
+                r.ccx_max,
+                r.penetration,
+                r.peak_mib,
+                if nk_row { format!("{:.1}×", dr.solve / nk.solve) } else { "1×".into() },
+                if nk_row { format!("{mean:.2e} / {max:.2e}") } else { String::new() },
+            ));
+        }
+    }
+    s
+}
