@@ -40,9 +40,21 @@ const SERIES_COLORS: [RGBColor; 10] = [
 ];
 use crate::validate::{read_reference, root};
 
-/// DR tolerance of the reference solution of each case (mm).
-pub const REFERENCE_TOLERANCE: f64 = 1e-5;
-/// DR tolerances of the sweep (mm).
+/// Tolerance of the reference solution of each case (mm); Newton–Krylov, whose error
+/// estimate is the last correction of a superlinear iteration.
+pub const REFERENCE_TOLERANCE: f64 = 1e-6;
+/// The solvers of the sweeps: the default and the paper's.
+const SOLVERS: [SolverKind; 2] = [SolverKind::NewtonKrylov, SolverKind::Dr];
+
+/// Short name of a solver in series names.
+fn short(s: SolverKind) -> &'static str {
+    match s {
+        SolverKind::NewtonKrylov => "NK",
+        SolverKind::Dr => "DR",
+        SolverKind::Newton => "Newton",
+    }
+}
+/// Tolerances of the sweep (mm).
 pub const TOLERANCES: [f64; 4] = [1e-1, 1e-2, 1e-3, 1e-4];
 /// Accuracy targets named in the findings (mean nodal error, mm).
 pub const TARGETS: [f64; 2] = [0.1, 0.5];
@@ -253,23 +265,31 @@ fn contact_sweep(case: &Case) -> Result<Vec<ChartPoint>, String> {
     let reference = Variant {
         element: Some(ElementChoice::T4anp),
         tolerance: Some(REFERENCE_TOLERANCE),
+        solver: Some(SolverKind::NewtonKrylov),
         ..Variant::default()
     };
     let (mut levels, ref_point) = levels_with_reference(case, &reference)?;
     let mut points = vec![ref_point];
     calculix_points(case, &mut levels, &mut points)?;
     for level in &levels {
-        for element in [ElementChoice::T4, ElementChoice::T4anp] {
-            let series = format!("{} {}", element_name(element), level.label);
-            for tol in TOLERANCES {
-                let v =
-                    Variant { element: Some(element), tolerance: Some(tol), ..Variant::default() };
-                points.push(measure(case.name, &series, level, &v)?);
+        for solver in SOLVERS {
+            for element in [ElementChoice::T4, ElementChoice::T4anp] {
+                let series = format!("{} {} {}", element_name(element), level.label, short(solver));
+                for tol in TOLERANCES {
+                    let v = Variant {
+                        element: Some(element),
+                        tolerance: Some(tol),
+                        solver: Some(solver),
+                        ..Variant::default()
+                    };
+                    points.push(measure(case.name, &series, level, &v)?);
+                }
             }
         }
     }
-    // Contact handlers on the coarsest level (T4ANP, 1e-3 mm; brute force costs minutes
-    // even there): the scene's own handler is already in the sweep.
+    // Contact handlers in DR's per-step enforcement on the coarsest level (T4ANP, 1e-3 mm;
+    // brute force costs minutes even there): the scene's own handler is already in the
+    // sweep.
     let middle = &levels[0];
     let own = middle.p.scene.contact.as_ref().map(|c| c.algorithm);
     for a in [Algorithm::Paper, Algorithm::Coherent, Algorithm::Parry, Algorithm::BruteForce] {
@@ -280,6 +300,7 @@ fn contact_sweep(case: &Case) -> Result<Vec<ChartPoint>, String> {
             element: Some(ElementChoice::T4anp),
             tolerance: Some(1e-3),
             contact: Some(ContactChoice::Handler(a)),
+            solver: Some(SolverKind::Dr),
             ..Variant::default()
         };
         points.push(measure(case.name, "handlers", middle, &v)?);
@@ -330,8 +351,8 @@ fn calculix_points(
     Ok(())
 }
 
-/// DR against Newton without contact on the ellipsoid levels (T4: Newton has no T4ANP),
-/// against the finest Newton solution.
+/// DR and Newton–Krylov against Newton without contact on the ellipsoid levels (T4: Newton
+/// has no T4ANP), against the finest Newton solution.
 fn newton_sweep(case: &Case) -> Result<Vec<ChartPoint>, String> {
     let base = Variant {
         element: Some(ElementChoice::T4),
@@ -343,9 +364,12 @@ fn newton_sweep(case: &Case) -> Result<Vec<ChartPoint>, String> {
     let (levels, ref_point) = levels_with_reference(case, &reference)?;
     let mut points = vec![ref_point];
     for level in &levels {
-        for tol in [1e-2, 1e-3, 1e-4] {
-            let v = Variant { tolerance: Some(tol), ..base.clone() };
-            points.push(measure(case.name, &format!("DR t4 {}", level.label), level, &v)?);
+        for solver in SOLVERS {
+            for tol in [1e-2, 1e-3, 1e-4] {
+                let v = Variant { tolerance: Some(tol), solver: Some(solver), ..base.clone() };
+                let series = format!("{} t4 {}", short(solver), level.label);
+                points.push(measure(case.name, &series, level, &v)?);
+            }
         }
         if level.label != levels.last().map_or("", |l| l.label) {
             points.push(measure(case.name, "Newton t4", level, &reference)?);
@@ -460,10 +484,13 @@ impl Figure for SpeedAccuracy<'_> {
                 chart.draw_series(LineSeries::new(xy.clone(), &color)).map_err(err)?;
             }
             let solid = *name == "CalculiX";
+            let newton_krylov = name.ends_with(" NK") || name.starts_with("NK ");
             chart
                 .draw_series(xy.iter().map(|&c| {
                     if solid {
                         Cross::new(c, 6, color.stroke_width(2)).into_dyn()
+                    } else if newton_krylov {
+                        TriangleMarker::new(c, 5, color.filled()).into_dyn()
                     } else {
                         Circle::new(c, 4, color.filled()).into_dyn()
                     }
@@ -473,6 +500,8 @@ impl Figure for SpeedAccuracy<'_> {
                 .legend(move |(x, y)| {
                     if solid {
                         Cross::new((x + 8, y), 5, color.stroke_width(2)).into_dyn()
+                    } else if newton_krylov {
+                        TriangleMarker::new((x + 8, y), 5, color.filled()).into_dyn()
                     } else {
                         Circle::new((x + 8, y), 4, color.filled()).into_dyn()
                     }
@@ -625,6 +654,7 @@ fn advice_json(all: &[(String, Vec<ChartPoint>)]) -> serde_json::Value {
                 targets.push(serde_json::json!({
                     "target_mm": t,
                     "element": p.element,
+                    "solver": p.solver,
                     "handler": p.handler,
                     "tolerance_mm": p.tolerance,
                     "mean_edge_mm": p.mean_edge,

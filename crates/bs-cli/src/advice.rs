@@ -37,7 +37,11 @@ pub struct Target {
     pub target_mm: f64,
     /// Element technology (`t4`, `t4anp`).
     pub element: String,
-    /// DR tolerance (mm).
+    /// Solver (`newton-krylov`, `dr`); findings written before the Newton–Krylov solver
+    /// existed have none (they were DR).
+    #[serde(default = "dr")]
+    pub solver: String,
+    /// Solver tolerance (mm).
     pub tolerance_mm: f64,
     /// Mean element edge of its mesh (mm).
     pub mean_edge_mm: f64,
@@ -48,6 +52,10 @@ pub struct Target {
     /// Its largest nodal error (mm): at the rim of the prescribed patch, where each mesh
     /// resolves the boundary of the set differently.
     pub max_error_mm: f64,
+}
+
+fn dr() -> String {
+    "dr".into()
 }
 
 /// The embedded findings.
@@ -87,10 +95,11 @@ pub fn advise(p: &Prepared, f: &Findings) -> Vec<String> {
     )];
     for t in &case.targets {
         out.push(format!(
-            "  mean error <= {} mm: {}, mean edge {:.1} mm, tolerance {:.0e} mm (measured mean \
-             {:.3} mm, max {:.2} mm; {:.1} s there)",
+            "  mean error <= {} mm: {} with {}, mean edge {:.1} mm, tolerance {:.0e} mm \
+             (measured mean {:.3} mm, max {:.2} mm; {:.1} s there)",
             t.target_mm,
             t.element,
+            t.solver,
             t.mean_edge_mm,
             t.tolerance_mm,
             t.mean_error_mm,
@@ -143,6 +152,7 @@ mod tests {
         Target {
             target_mm,
             element: element.into(),
+            solver: "newton-krylov".into(),
             tolerance_mm,
             mean_edge_mm,
             seconds: 1.0,
