@@ -1,30 +1,49 @@
-//! TLED internal-force kernels (T4, T4ANP, H8 mean strain + hourglass) and their
-//! deterministic parallel assembly.
+//! Internal forces: runs the element kernels of [`crate::kernels`] in parallel and assembles
+//! their results deterministically.
 //!
 //! Every element writes its nodal forces into its own slots of a per-element buffer (in
-//! parallel, with rayon); then every node sums its slots in a fixed, increasing order (in
-//! parallel over nodes). No floating-point sum depends on the thread count, so results are
-//! bit-identical for 1 and N threads.
+//! parallel, with rayon, over fixed runs of elements); then every node sums its slots in a
+//! fixed, increasing order (in parallel over nodes). No floating-point sum depends on the
+//! thread count, so results are bit-identical for 1 and N threads.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use bs_mesh::Vector3;
-use nalgebra::Matrix3;
-
 use rayon::prelude::*;
 
+use crate::kernels::h8::H8Forces;
+use crate::kernels::layout::{LANES, slot_offset};
+use crate::kernels::simd::dispatch;
+use crate::kernels::t4::T4Forces;
+use crate::kernels::t4anp::{AnpForces, Jacobians, nodal_ratio};
+use crate::kernels::tet_block::BlockForces;
 use crate::model::{Model, TetFormulation};
 
 /// Minimum number of elements (or nodes) per rayon task.
-const MIN_LEN: usize = 512;
+pub(crate) const MIN_LEN: usize = 512;
+
+/// Tet blocks per rayon task (a fixed partition: results do not depend on it).
+const BLOCKS_PER_TASK: usize = 64;
+
+/// Hexes per rayon task.
+const HEXES_PER_TASK: usize = 128;
 
 /// Caller-owned scratch buffers for [`Model::internal_forces_into`]; allocate once with
 /// [`Model::workspace`] and reuse every step.
 #[derive(Debug, Clone)]
 pub struct Workspace {
-    slots: Vec<Vector3<f64>>,
-    /// Per-element `J` (tets, then hexes).
-    jac: Vec<f64>,
+    /// Displacements padded to `[x, y, z, 0]` (one aligned load per node in the kernels).
+    upad: Vec<[f64; 4]>,
+    /// Tet force slots, blocked: `[block][3a + component][lane]`.
+    tslots: Vec<BlockForces>,
+    /// Hex force slots, 8 per hex.
+    hslots: Vec<Vector3<f64>>,
+    /// Tet `J`, blocked.
+    tjac: Vec<[f64; LANES]>,
+    /// Tet `V J` (T4ANP), blocked.
+    tvj: Vec<[f64; LANES]>,
+    /// Hex `J`.
+    hjac: Vec<f64>,
     /// ANP nodal volume ratios.
     jnodal: Vec<f64>,
 }
@@ -40,52 +59,17 @@ pub struct Inversion {
     pub jacobian: f64,
 }
 
-/// `F = I + Σ_a u_a ⊗ g_a` (row i = displacement component, column j = reference direction).
-#[inline(always)]
-fn deformation_gradient<const N: usize>(
-    u: &[Vector3<f64>],
-    nodes: &[u32; N],
-    g: &[[f64; 3]; N],
-) -> Matrix3<f64> {
-    let mut f = Matrix3::identity();
-    for a in 0..N {
-        let ua = &u[nodes[a] as usize];
-        for j in 0..3 {
-            for i in 0..3 {
-                f[(i, j)] += ua[i] * g[a][j];
-            }
-        }
-    }
-    f
-}
-
-#[inline(always)]
-fn det3(f: &Matrix3<f64>) -> f64 {
-    f[(0, 0)] * (f[(1, 1)] * f[(2, 2)] - f[(1, 2)] * f[(2, 1)])
-        - f[(0, 1)] * (f[(1, 0)] * f[(2, 2)] - f[(1, 2)] * f[(2, 0)])
-        + f[(0, 2)] * (f[(1, 0)] * f[(2, 1)] - f[(1, 1)] * f[(2, 0)])
-}
-
-/// `out_a = scale · P g_a` for every node (`P` the first Piola–Kirchhoff stress).
-#[inline(always)]
-fn nodal_forces<const N: usize>(
-    p: &Matrix3<f64>,
-    scale: f64,
-    g: &[[f64; 3]; N],
-    out: &mut [Vector3<f64>],
-) {
-    let p = p * scale;
-    for a in 0..N {
-        out[a] = p * Vector3::from(g[a]);
-    }
-}
-
 impl Model {
     /// Scratch buffers sized for this model.
     pub fn workspace(&self) -> Workspace {
+        let nb = self.tet_blocks.len();
         Workspace {
-            slots: vec![Vector3::zeros(); self.slot_count()],
-            jac: vec![0.0; self.tets.len() + self.hexes.len()],
+            upad: vec![[0.0; 4]; self.node_count()],
+            tslots: vec![[[0.0; LANES]; 12]; nb],
+            hslots: vec![Vector3::zeros(); 8 * self.hexes.len()],
+            tjac: vec![[0.0; LANES]; nb],
+            tvj: vec![[0.0; LANES]; nb],
+            hjac: vec![0.0; self.hexes.len()],
             jnodal: vec![0.0; self.node_count()],
         }
     }
@@ -107,140 +91,133 @@ impl Model {
         assert_eq!(forces.len(), self.node_count(), "force length must equal the node count");
         let nt = self.tets.len();
         let bad = AtomicBool::new(false);
-        let (tslots, hslots) = ws.slots.split_at_mut(4 * nt);
-        let (tjac, hjac) = ws.jac.split_at_mut(nt);
+        let flag = |b: bool| {
+            if b {
+                bad.store(true, Ordering::Relaxed);
+            }
+        };
+        ws.upad
+            .par_iter_mut()
+            .zip(u.par_iter())
+            .with_min_len(4 * MIN_LEN)
+            .for_each(|(p, v)| *p = [v.x, v.y, v.z, 0.0]);
+        let upad: &[[f64; 4]] = &ws.upad;
+        let tets_of = |task: usize, len: usize| {
+            let lo = (task * BLOCKS_PER_TASK * LANES).min(nt);
+            &self.tets[lo..(lo + len * LANES).min(nt)]
+        };
         match self.options.tet {
             TetFormulation::T4 => {
-                tslots
-                    .par_chunks_mut(4)
-                    .zip(tjac.par_iter_mut())
-                    .zip(self.tets.par_iter())
-                    .with_min_len(MIN_LEN)
-                    .for_each(|((out, jac), t)| {
-                        let f = deformation_gradient(u, &t.nodes, &t.g);
-                        let j = det3(&f);
-                        *jac = j;
-                        if !(j > 0.0 && j.is_finite()) {
-                            bad.store(true, Ordering::Relaxed);
-                            out.iter_mut().for_each(|o| *o = Vector3::zeros());
-                            return;
-                        }
-                        let p = self.solids[t.mat as usize].material.pk1_fj(&f, j);
-                        nodal_forces(&p, t.vol, &t.g, out);
+                self.tet_blocks
+                    .par_chunks(BLOCKS_PER_TASK)
+                    .zip(ws.tslots.par_chunks_mut(BLOCKS_PER_TASK))
+                    .zip(ws.tjac.par_chunks_mut(BLOCKS_PER_TASK))
+                    .enumerate()
+                    .for_each(|(task, ((blocks, out), jac))| {
+                        flag(dispatch(T4Forces {
+                            blocks,
+                            tets: tets_of(task, blocks.len()),
+                            solids: &self.solids,
+                            u,
+                            upad,
+                            out,
+                            jac,
+                        }))
                     });
             }
             TetFormulation::T4Anp => {
-                // Pass 1: element volume ratios.
-                tjac.par_iter_mut().zip(self.tets.par_iter()).with_min_len(MIN_LEN).for_each(
-                    |(jac, t)| {
-                        let f = deformation_gradient(u, &t.nodes, &t.g);
-                        *jac = det3(&f);
-                    },
-                );
+                // Pass 1: J and V J.
+                self.tet_blocks
+                    .par_chunks(BLOCKS_PER_TASK)
+                    .zip(ws.tjac.par_chunks_mut(BLOCKS_PER_TASK))
+                    .zip(ws.tvj.par_chunks_mut(BLOCKS_PER_TASK))
+                    .for_each(|((blocks, jac), vj)| dispatch(Jacobians { blocks, upad, jac, vj }));
                 // Pass 2: nodal volume-weighted averages (fixed order per node).
-                let tjac_ro: &[f64] = tjac;
-                let tets = &self.tets;
+                let tvj: &[[f64; LANES]] = &ws.tvj;
                 ws.jnodal.par_iter_mut().enumerate().with_min_len(MIN_LEN).for_each(|(n, jn)| {
-                    let mut acc = 0.0;
-                    let lo = self.gather_ptr[n] as usize;
-                    let hi = self.gather_ptr[n + 1] as usize;
-                    for &s in &self.gather_slot[lo..hi] {
-                        let s = s as usize;
-                        if s < 4 * nt {
-                            let e = s / 4;
-                            acc += tets[e].vol * tjac_ro[e];
-                        }
-                    }
-                    *jn = acc * self.anp_inv_vol[n];
+                    let slots = &self.gather_slot
+                        [self.gather_ptr[n] as usize..self.gather_ptr[n + 1] as usize];
+                    *jn = nodal_ratio(slots, 4 * nt, tvj, self.anp_inv_vol[n]);
                 });
-                // Pass 3: stress from F̄ = (J̄/J)^(1/3) F, forces f_a = V (J/J̄)^(1/3) F S̄ g_a
-                // (= ∫ σ̄ ∇ₓN_a dv over the current element volume).
-                let jnodal: &[f64] = &ws.jnodal;
-                tslots
-                    .par_chunks_mut(4)
-                    .zip(tjac_ro.par_iter())
-                    .zip(self.tets.par_iter())
-                    .with_min_len(MIN_LEN)
-                    .for_each(|((out, &j), t)| {
-                        let jbar = 0.25
-                            * (jnodal[t.nodes[0] as usize]
-                                + jnodal[t.nodes[1] as usize]
-                                + jnodal[t.nodes[2] as usize]
-                                + jnodal[t.nodes[3] as usize]);
-                        if !(j > 0.0 && j.is_finite() && jbar > 0.0 && jbar.is_finite()) {
-                            bad.store(true, Ordering::Relaxed);
-                            out.iter_mut().for_each(|o| *o = Vector3::zeros());
-                            return;
-                        }
-                        let f = deformation_gradient(u, &t.nodes, &t.g);
-                        let r = bs_material::inv_cbrt(j / jbar); // (J̄/J)^(1/3)
-                        // P̄ = P(F̄ = r F, J̄); f_a = V r⁻¹ F S̄ g_a = V r⁻² P̄ g_a.
-                        let p = self.solids[t.mat as usize].material.pk1_fj(&(f * r), jbar);
-                        nodal_forces(&p, t.vol / (r * r), &t.g, out);
+                // Pass 3: J̄ and the forces.
+                let (jnodal, tjac): (&[f64], &[[f64; LANES]]) = (&ws.jnodal, &ws.tjac);
+                self.tet_blocks
+                    .par_chunks(BLOCKS_PER_TASK)
+                    .zip(ws.tslots.par_chunks_mut(BLOCKS_PER_TASK))
+                    .zip(tjac.par_chunks(BLOCKS_PER_TASK))
+                    .enumerate()
+                    .for_each(|(task, ((blocks, out), jac))| {
+                        flag(dispatch(AnpForces {
+                            blocks,
+                            tets: tets_of(task, blocks.len()),
+                            solids: &self.solids,
+                            u,
+                            upad,
+                            jac,
+                            jnodal,
+                            out,
+                        }))
                     });
             }
         }
-        hslots
-            .par_chunks_mut(8)
-            .zip(hjac.par_iter_mut())
-            .zip(self.hexes.par_iter())
-            .with_min_len(MIN_LEN / 4)
-            .for_each(|((out, jac), h)| {
-                let f = deformation_gradient(u, &h.nodes, &h.g);
-                let j = det3(&f);
-                *jac = j;
-                if !(j > 0.0 && j.is_finite()) {
-                    bad.store(true, Ordering::Relaxed);
-                    out.iter_mut().for_each(|o| *o = Vector3::zeros());
-                    return;
-                }
-                let p = self.solids[h.mat as usize].material.pk1_fj(&f, j);
-                nodal_forces(&p, h.vol, &h.g, out);
-                // Hourglass forces K_hg u (per component).
-                for a in 0..8 {
-                    let mut acc = Vector3::zeros();
-                    for b in 0..8 {
-                        acc += u[h.nodes[b] as usize] * h.hg[a][b];
-                    }
-                    out[a] += acc;
-                }
+        self.hexes
+            .par_chunks(HEXES_PER_TASK)
+            .zip(ws.hslots.par_chunks_mut(8 * HEXES_PER_TASK))
+            .zip(ws.hjac.par_chunks_mut(HEXES_PER_TASK))
+            .for_each(|((hexes, out), jac)| {
+                flag(dispatch(H8Forces { hexes, solids: &self.solids, upad, out, jac }))
             });
-        // Gather per node in slot order.
-        let slots: &[Vector3<f64>] = &ws.slots;
+        // Gather per node in slot order: tet slots (blocked buffer), then hex slots.
+        let tslots: &[f64] = ws.tslots.as_flattened().as_flattened();
+        let hslots: &[Vector3<f64>] = &ws.hslots;
         forces.par_iter_mut().enumerate().with_min_len(MIN_LEN).for_each(|(n, fo)| {
             let lo = self.gather_ptr[n] as usize;
             let hi = self.gather_ptr[n + 1] as usize;
             let mut acc = Vector3::zeros();
             for &s in &self.gather_slot[lo..hi] {
-                acc += slots[s as usize];
+                let s = s as usize;
+                if s < 4 * nt {
+                    let o = slot_offset(s);
+                    acc += Vector3::new(tslots[o], tslots[o + LANES], tslots[o + 2 * LANES]);
+                } else {
+                    acc += hslots[s - 4 * nt];
+                }
             }
             *fo = acc;
         });
         if bad.load(Ordering::Relaxed) {
-            return Err(self.first_inversion(&ws.jac, &ws.jnodal));
+            let tjac = &ws.tjac;
+            return Err(self.first_inversion(|t| tjac[t / LANES][t % LANES], &ws.hjac, &ws.jnodal));
         }
         Ok(())
     }
 
-    fn first_inversion(&self, jac: &[f64], jnodal: &[f64]) -> Inversion {
-        let nt = self.tets.len();
+    /// The lowest-indexed element (mesh order) whose `J` (or, for T4ANP tets with a valid
+    /// `J`, whose `J̄`) is not > 0 and finite. `tjac(t)` is the `J` of tet `t`.
+    pub(crate) fn first_inversion(
+        &self,
+        tjac: impl Fn(usize) -> f64,
+        hjac: &[f64],
+        jnodal: &[f64],
+    ) -> Inversion {
         let mut best: Option<Inversion> = None;
-        for (k, &j) in jac.iter().enumerate() {
-            let (e, jj) = if k < nt {
-                let t = &self.tets[k];
-                let jbar = if self.options.tet == TetFormulation::T4Anp {
-                    0.25 * t.nodes.iter().map(|&n| jnodal[n as usize]).sum::<f64>()
-                } else {
-                    j
-                };
-                (self.tet_element(k), if j > 0.0 && j.is_finite() { jbar } else { j })
-            } else {
-                (self.hex_element(k - nt), j)
-            };
+        let mut consider = |e: usize, jj: f64| {
             if !(jj > 0.0 && jj.is_finite()) && best.is_none_or(|b| e < b.element) {
                 best =
                     Some(Inversion { element: e, element_id: self.element_ids[e], jacobian: jj });
             }
+        };
+        for (k, t) in self.tets.iter().enumerate() {
+            let j = tjac(k);
+            let jbar = if self.options.tet == TetFormulation::T4Anp {
+                0.25 * t.nodes.iter().map(|&n| jnodal[n as usize]).sum::<f64>()
+            } else {
+                j
+            };
+            consider(self.tet_element(k), if j > 0.0 && j.is_finite() { jbar } else { j });
+        }
+        for (k, &j) in hjac.iter().enumerate() {
+            consider(self.hex_element(k), j);
         }
         best.unwrap_or(Inversion {
             element: 0,

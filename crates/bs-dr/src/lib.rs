@@ -49,8 +49,9 @@
 //!   nothing (buffers are allocated once per solve).
 //! * Newton supports T4 and H8 (not T4ANP, not contact) and exists to check DR.
 //!
-//! Modules: [`model`] (precomputation), [`forces`] (kernels and deterministic parallel
-//! assembly), [`loads`], [`contact`] (the seam), [`solver`] (trait, report, errors),
+//! Modules: [`model`] (precomputation), [`forces`] (deterministic parallel assembly of the
+//! element kernels; the kernels themselves live in the private `kernels` module: SIMD
+//! across blocks of four tets, H8, and the scalar reference), [`loads`], [`contact`] (the seam), [`solver`] (trait, report, errors),
 //! [`dr`], [`newton`].
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the tensor formulas
@@ -58,6 +59,7 @@
 pub mod contact;
 pub mod dr;
 pub mod forces;
+mod kernels;
 pub mod loads;
 pub mod model;
 pub mod newton;
@@ -67,6 +69,11 @@ pub mod solver;
 pub use contact::{Contact, ContactReport, NoContact};
 pub use dr::{DrParams, DynamicRelaxation};
 pub use forces::{Inversion, Workspace};
+#[doc(hidden)]
+pub use kernels::reference::ReferenceWorkspace;
+/// Whether the tet kernels run on AVX2/FMA lanes on this CPU (else the portable lanes).
+#[doc(hidden)]
+pub use kernels::simd::has_avx2_fma;
 pub use loads::{LoadError, Loads, ramp};
 pub use model::{Model, ModelError, ModelOptions, Solid, TetFormulation};
 pub use newton::{Newton, NewtonParams};

@@ -1,0 +1,77 @@
+//! The blocked (structure-of-arrays) copy of the tetrahedra that the SIMD kernels read:
+//! tets `4b … 4b+3` form block `b`, one tet per lane. Derived in `Model::new` from
+//! `Model::tets`, which stays the reference (array-of-structures) data for every other
+//! reader. The last block is padded with inert lanes (zero gradients and volume, node 0:
+//! `F = I`, zero force), whose slots no node gathers.
+
+use bs_material::{Elastic, Material};
+
+use crate::model::{Solid, Tet};
+
+/// Elements per block (f64 lanes of a 256-bit vector).
+pub(crate) const LANES: usize = 4;
+
+/// How a block evaluates its stress.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum BlockLaw {
+    /// Every real lane is Neo-Hookean with these parameters: the vectorised law.
+    NeoHookean(Elastic),
+    /// Any other law or a mix of parameters: each lane through the scalar
+    /// `Material::pk1_fj`.
+    PerElement,
+}
+
+/// Four tetrahedra, lane `l` = tet `4b + l`.
+#[derive(Debug, Clone)]
+pub(crate) struct TetBlock {
+    /// Reference gradients: `g[3a + k][l] = ∂N_a/∂X_k` of lane `l`.
+    pub g: [[f64; LANES]; 12],
+    /// Reference volumes.
+    pub vol: [f64; LANES],
+    /// Node indices: `nodes[a][l]`.
+    pub nodes: [[u32; LANES]; 4],
+    /// The block's stress evaluation.
+    pub law: BlockLaw,
+}
+
+/// Builds the blocks of `tets` (materials from `solids`).
+pub(crate) fn tet_blocks(tets: &[Tet], solids: &[Solid]) -> Vec<TetBlock> {
+    tets.chunks(LANES)
+        .map(|chunk| {
+            let mut b = TetBlock {
+                g: [[0.0; LANES]; 12],
+                vol: [0.0; LANES],
+                nodes: [[0; LANES]; 4],
+                law: BlockLaw::PerElement,
+            };
+            for (l, t) in chunk.iter().enumerate() {
+                for a in 0..4 {
+                    b.nodes[a][l] = t.nodes[a];
+                    for k in 0..3 {
+                        b.g[3 * a + k][l] = t.g[a][k];
+                    }
+                }
+                b.vol[l] = t.vol;
+            }
+            let law = |t: &Tet| match solids[t.mat as usize].material {
+                Material::NeoHookean(e) => Some(e),
+                _ => None,
+            };
+            if let Some(e) = law(&chunk[0])
+                && chunk.iter().all(|t| law(t) == Some(e))
+            {
+                b.law = BlockLaw::NeoHookean(e);
+            }
+            b
+        })
+        .collect()
+}
+
+/// Index of tet slot `s = 4t + a` (tet `t`, local node `a`) in the blocked force buffer
+/// (`[block][3a + component][lane]` flattened): the x component; y and z follow at
+/// `+LANES` and `+2·LANES`.
+#[inline(always)]
+pub(crate) fn slot_offset(s: usize) -> usize {
+    let (t, a) = (s / 4, s % 4);
+    ((t / LANES) * 12 + 3 * a) * LANES + t % LANES
+}
