@@ -12,10 +12,10 @@ use bs_mesh::Vector3;
 use rayon::prelude::*;
 
 use crate::kernels::h8::H8Forces;
-use crate::kernels::layout::{LANES, slot_offset};
+use crate::kernels::layout::{LANES, SlotPositions};
 use crate::kernels::simd::dispatch;
 use crate::kernels::t4::T4Forces;
-use crate::kernels::t4anp::{AnpForces, Jacobians, nodal_ratio};
+use crate::kernels::t4anp::{AnpForces, BlockMat, Jacobians, nodal_ratio};
 use crate::kernels::tet_block::BlockForces;
 use crate::model::{Model, TetFormulation};
 
@@ -42,6 +42,8 @@ pub struct Workspace {
     tjac: Vec<[f64; LANES]>,
     /// Tet `V J` (T4ANP), blocked.
     tvj: Vec<[f64; LANES]>,
+    /// Tet `F` (T4ANP), blocked.
+    tf: Vec<BlockMat>,
     /// Hex `J`.
     hjac: Vec<f64>,
     /// ANP nodal volume ratios.
@@ -69,6 +71,11 @@ impl Model {
             hslots: vec![Vector3::zeros(); 8 * self.hexes.len()],
             tjac: vec![[0.0; LANES]; nb],
             tvj: vec![[0.0; LANES]; nb],
+            tf: if self.options.tet == TetFormulation::T4Anp {
+                vec![[[0.0; LANES]; 9]; nb]
+            } else {
+                Vec::new()
+            },
             hjac: vec![0.0; self.hexes.len()],
             jnodal: vec![0.0; self.node_count()],
         }
@@ -126,33 +133,38 @@ impl Model {
                     });
             }
             TetFormulation::T4Anp => {
-                // Pass 1: J and V J.
+                // Pass 1: F, J and V J.
                 self.tet_blocks
                     .par_chunks(BLOCKS_PER_TASK)
+                    .zip(ws.tf.par_chunks_mut(BLOCKS_PER_TASK))
                     .zip(ws.tjac.par_chunks_mut(BLOCKS_PER_TASK))
                     .zip(ws.tvj.par_chunks_mut(BLOCKS_PER_TASK))
-                    .for_each(|((blocks, jac), vj)| dispatch(Jacobians { blocks, upad, jac, vj }));
+                    .for_each(|(((blocks, f), jac), vj)| {
+                        dispatch(Jacobians { blocks, upad, f, jac, vj })
+                    });
                 // Pass 2: nodal volume-weighted averages (fixed order per node).
                 let tvj: &[[f64; LANES]] = &ws.tvj;
                 ws.jnodal.par_iter_mut().enumerate().with_min_len(MIN_LEN).for_each(|(n, jn)| {
-                    let slots = &self.gather_slot
-                        [self.gather_ptr[n] as usize..self.gather_ptr[n + 1] as usize];
-                    *jn = nodal_ratio(slots, 4 * nt, tvj, self.anp_inv_vol[n]);
+                    let lo = self.gather_ptr[n] as usize;
+                    let slots = &self.gather_slot[lo..lo + self.slot_positions.tets[n] as usize];
+                    *jn = nodal_ratio(slots, tvj, self.anp_inv_vol[n]);
                 });
                 // Pass 3: J̄ and the forces.
-                let (jnodal, tjac): (&[f64], &[[f64; LANES]]) = (&ws.jnodal, &ws.tjac);
+                let (jnodal, tjac, tf): (&[f64], &[[f64; LANES]], &[BlockMat]) =
+                    (&ws.jnodal, &ws.tjac, &ws.tf);
                 self.tet_blocks
                     .par_chunks(BLOCKS_PER_TASK)
                     .zip(ws.tslots.par_chunks_mut(BLOCKS_PER_TASK))
                     .zip(tjac.par_chunks(BLOCKS_PER_TASK))
+                    .zip(tf.par_chunks(BLOCKS_PER_TASK))
                     .enumerate()
-                    .for_each(|(task, ((blocks, out), jac))| {
+                    .for_each(|(task, (((blocks, out), jac), f))| {
                         flag(dispatch(AnpForces {
                             blocks,
                             tets: tets_of(task, blocks.len()),
                             solids: &self.solids,
                             u,
-                            upad,
+                            f,
                             jac,
                             jnodal,
                             out,
@@ -167,23 +179,37 @@ impl Model {
             .for_each(|((hexes, out), jac)| {
                 flag(dispatch(H8Forces { hexes, solids: &self.solids, upad, out, jac }))
             });
-        // Gather per node in slot order: tet slots (blocked buffer), then hex slots.
+        // Gather per node in slot order: tet slots (blocked buffer), then hex slots; even and
+        // odd positions in two partial sums (two independent add chains), added at the end.
         let tslots: &[f64] = ws.tslots.as_flattened().as_flattened();
         let hslots: &[Vector3<f64>] = &ws.hslots;
+        let tslot = |o: u32| {
+            let o = o as usize;
+            Vector3::new(tslots[o], tslots[o + LANES], tslots[o + 2 * LANES])
+        };
+        let SlotPositions { pos, tets } = &self.slot_positions;
         forces.par_iter_mut().enumerate().with_min_len(MIN_LEN).for_each(|(n, fo)| {
             let lo = self.gather_ptr[n] as usize;
             let hi = self.gather_ptr[n + 1] as usize;
-            let mut acc = Vector3::zeros();
-            for &s in &self.gather_slot[lo..hi] {
-                let s = s as usize;
-                if s < 4 * nt {
-                    let o = slot_offset(s);
-                    acc += Vector3::new(tslots[o], tslots[o + LANES], tslots[o + 2 * LANES]);
-                } else {
-                    acc += hslots[s - 4 * nt];
-                }
+            let (tpos, hpos) = pos[lo..hi].split_at(tets[n] as usize);
+            let (mut even, mut odd) = (Vector3::zeros(), Vector3::zeros());
+            let mut pairs = tpos.chunks_exact(2);
+            for p in &mut pairs {
+                even += tslot(p[0]);
+                odd += tslot(p[1]);
             }
-            *fo = acc;
+            if let [o] = pairs.remainder() {
+                even += tslot(*o);
+            }
+            let mut pairs = hpos.chunks_exact(2);
+            for p in &mut pairs {
+                even += hslots[p[0] as usize];
+                odd += hslots[p[1] as usize];
+            }
+            if let [o] = pairs.remainder() {
+                even += hslots[*o as usize];
+            }
+            *fo = even + odd;
         });
         if bad.load(Ordering::Relaxed) {
             let tjac = &ws.tjac;

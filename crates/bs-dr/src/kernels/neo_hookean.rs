@@ -72,15 +72,14 @@ pub(crate) fn det_from_cofactor<L: Lanes>(l: L, f: &Mat<L::V>, cof: &Mat<L::V>) 
 /// `F:F`.
 #[inline(always)]
 pub(crate) fn frobenius2<L: Lanes>(l: L, f: &Mat<L::V>) -> L::V {
-    let mut s = l.mul(f[0][0], f[0][0]);
-    for (i, row) in f.iter().enumerate() {
-        for (j, &v) in row.iter().enumerate() {
-            if i + j > 0 {
-                s = l.mul_add(v, v, s);
-            }
-        }
-    }
-    s
+    // Three independent row sums, then their total (short dependency chains).
+    l.add(l.add(norm2(l, &f[0]), norm2(l, &f[1])), norm2(l, &f[2]))
+}
+
+/// `r·r` of a row.
+#[inline(always)]
+fn norm2<L: Lanes>(l: L, r: &[L::V; 3]) -> L::V {
+    l.mul_add(r[2], r[2], l.mul_add(r[1], r[1], l.mul(r[0], r[0])))
 }
 
 /// Neo-Hookean parameters broadcast to lanes.
@@ -90,7 +89,8 @@ pub(crate) struct NhLanes<V> {
     pub kappa: V,
 }
 
-/// The coefficients `(α, β)` of `V_e P = α F + β cof F` for the Neo-Hookean law, with
+/// The coefficients `(α, β)` of `V_e P = α F + β cof F` for the Neo-Hookean law, given
+/// `ρ = J^(−2/3)` (from [`inv_cbrt`] of `J²`), with
 /// `P(F, J) = μ J^(−2/3) F + (κ J (J − 1) − μ J^(−2/3) I₁/3) J⁻¹ cof F` (bs-material's
 /// `pk1_fj`, `I₁ = F:F`), scaled by the reference volume `vol`.
 ///
@@ -106,9 +106,9 @@ pub(crate) fn pk1_coefficients<L: Lanes>(
     j: L::V,
     jbar: L::V,
     i1: L::V,
+    rho: L::V,
     vol: L::V,
 ) -> (L::V, L::V) {
-    let rho = inv_cbrt(l, l.mul(j, j)); // J^(−2/3)
     let mu_rho = l.mul(p.mu, rho);
     let v_over_jbar = l.div(vol, jbar);
     let alpha = l.mul(l.mul(mu_rho, j), v_over_jbar);

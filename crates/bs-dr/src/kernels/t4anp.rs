@@ -6,24 +6,29 @@
 //!    `r = (J̄/J)^(1/3)`, as one fused evaluation for the Neo-Hookean law (see
 //!    [`pk1_coefficients`]).
 //!
-//! Pass 1 stores 16 bytes per tet; pass 3 recomputes `F` from the cache-resident
-//! displacements rather than storing and re-reading 72 bytes per tet.
+//! `F` is computed once, in pass 1, and kept (72 bytes per tet) for pass 3, which then reads
+//! neither the displacements nor the node indices for it.
 
 use bs_mesh::Vector3;
 
-use super::layout::{BlockLaw, LANES, TetBlock};
-use super::neo_hookean::{NhLanes, cofactor, cross2, frobenius2, pk1_coefficients};
+use super::layout::{LANES, TetBlock};
+use super::neo_hookean::{Mat, NhLanes, cross2, inv_cbrt, pk1_coefficients};
 use super::reference;
 use super::simd::{BlockOp, Lanes};
 use super::tet_block::{
-    BlockForces, deformation_gradient, put_lane, store_forces, zero_invalid_lanes,
+    BlockForces, GROUP, Kinematics, deformation_gradient, group_laws, kinematics_of, nh_lanes,
+    put_lane, store_forces, zero_invalid_lanes,
 };
 use crate::model::{Solid, Tet};
 
-/// Pass 1: `J` and `V J` of a run of consecutive blocks.
+/// `F` of a block, `[3i + j][lane]`.
+pub(crate) type BlockMat = [[f64; LANES]; 9];
+
+/// Pass 1: `F`, `J` and `V J` of a run of consecutive blocks.
 pub(crate) struct Jacobians<'a> {
     pub blocks: &'a [TetBlock],
     pub upad: &'a [[f64; 4]],
+    pub f: &'a mut [BlockMat],
     pub jac: &'a mut [[f64; LANES]],
     pub vj: &'a mut [[f64; LANES]],
 }
@@ -33,8 +38,14 @@ impl BlockOp for Jacobians<'_> {
 
     #[inline(always)]
     fn run<L: Lanes>(self, l: L) {
-        for ((b, jac), vj) in self.blocks.iter().zip(self.jac.iter_mut()).zip(self.vj.iter_mut()) {
+        let blocks = self.blocks.iter().zip(self.f.iter_mut());
+        for (((b, fout), jac), vj) in blocks.zip(self.jac.iter_mut()).zip(self.vj.iter_mut()) {
             let f = deformation_gradient(l, self.upad, b);
+            for i in 0..3 {
+                for j in 0..3 {
+                    fout[3 * i + j] = l.store(f[i][j]);
+                }
+            }
             let j = l.mul_add(
                 f[0][0],
                 cross2(l, f[1][1], f[2][2], f[1][2], f[2][1]),
@@ -50,25 +61,25 @@ impl BlockOp for Jacobians<'_> {
     }
 }
 
-/// Pass 2 at one node: `Σ V_e J_e / Σ V_e` over the node's tets, in slot order (`slots` are
-/// the node's force slots; tet slots `4t + a` come first). `vj[t / 4][t % 4] = V_t J_t`.
+/// Pass 2 at one node: `Σ V_e J_e / Σ V_e` over the node's tets, in a fixed order (`slots`
+/// are the node's tet slots `4t + a`, increasing). `vj[t / 4][t % 4] = V_t J_t`.
 #[inline]
-pub(crate) fn nodal_ratio(
-    slots: &[u32],
-    tet_slots: usize,
-    vj: &[[f64; LANES]],
-    inv_vol: f64,
-) -> f64 {
-    let mut acc = 0.0;
-    for &s in slots {
-        let s = s as usize;
-        if s >= tet_slots {
-            break;
-        }
-        let t = s / 4;
-        acc += vj[t / LANES][t % LANES];
+pub(crate) fn nodal_ratio(slots: &[u32], vj: &[[f64; LANES]], inv_vol: f64) -> f64 {
+    // Two partial sums (even and odd positions) for two independent add chains.
+    let vj_of = |s: u32| {
+        let t = s as usize / 4;
+        vj[t / LANES][t % LANES]
+    };
+    let mut pairs = slots.chunks_exact(2);
+    let (mut even, mut odd) = (0.0, 0.0);
+    for p in &mut pairs {
+        even += vj_of(p[0]);
+        odd += vj_of(p[1]);
     }
-    acc * inv_vol
+    if let [s] = pairs.remainder() {
+        even += vj_of(*s);
+    }
+    (even + odd) * inv_vol
 }
 
 /// Pass 3: T4ANP forces of a run of consecutive blocks.
@@ -78,7 +89,8 @@ pub(crate) struct AnpForces<'a> {
     pub tets: &'a [Tet],
     pub solids: &'a [Solid],
     pub u: &'a [Vector3<f64>],
-    pub upad: &'a [[f64; 4]],
+    /// `F` from pass 1.
+    pub f: &'a [BlockMat],
     /// `J` from pass 1.
     pub jac: &'a [[f64; LANES]],
     /// `J_n` from pass 2 (per node).
@@ -86,54 +98,113 @@ pub(crate) struct AnpForces<'a> {
     pub out: &'a mut [BlockForces],
 }
 
+/// `F` from its stored lanes.
+#[inline(always)]
+fn load_mat<L: Lanes>(l: L, m: &BlockMat) -> Mat<L::V> {
+    [
+        [l.load(m[0]), l.load(m[1]), l.load(m[2])],
+        [l.load(m[3]), l.load(m[4]), l.load(m[5])],
+        [l.load(m[6]), l.load(m[7]), l.load(m[8])],
+    ]
+}
+
+/// `J̄ = ¼ (((J_n0 + J_n1) + J_n2) + J_n3)` of a block's lanes, in the scalar order.
+#[inline(always)]
+fn jbar_lanes<L: Lanes>(l: L, b: &TetBlock, jn: &[f64]) -> L::V {
+    let mut jsum = l.splat(0.0);
+    for (a, nodes) in b.nodes.iter().enumerate() {
+        let ja = l.load([
+            jn[nodes[0] as usize],
+            jn[nodes[1] as usize],
+            jn[nodes[2] as usize],
+            jn[nodes[3] as usize],
+        ]);
+        jsum = if a == 0 { ja } else { l.add(jsum, ja) };
+    }
+    l.mul(l.splat(0.25), jsum)
+}
+
+/// Forces of one Neo-Hookean block from `J`, `J̄`, its kinematics and `ρ = J^(−2/3)`;
+/// returns whether a lane has `J` or `J̄` not > 0 and finite.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn finish<L: Lanes>(
+    l: L,
+    b: &TetBlock,
+    nh: NhLanes<L::V>,
+    j: L::V,
+    jbar: L::V,
+    k: &Kinematics<L::V>,
+    rho: L::V,
+    out: &mut BlockForces,
+) -> bool {
+    let (alpha, beta) = pk1_coefficients(l, nh, j, jbar, k.i1, rho, l.load(b.vol));
+    store_forces(l, b, &k.f, &k.cof, alpha, beta, out);
+    let valid = l.positive_finite_mask(j) & l.positive_finite_mask(jbar);
+    if valid != 0b1111 {
+        zero_invalid_lanes(valid, out);
+    }
+    valid != 0b1111
+}
+
+impl AnpForces<'_> {
+    /// One block on its own (the last blocks of a run, per-element laws).
+    #[inline(always)]
+    fn single<L: Lanes>(&mut self, l: L, i: usize) -> bool {
+        let (b, jac, jn) = (&self.blocks[i], &self.jac[i], self.jnodal);
+        if let Some(nh) = nh_lanes(l, b) {
+            let (j, jbar) = (l.load(*jac), jbar_lanes(l, b, jn));
+            let rho = inv_cbrt(l, l.mul(j, j));
+            let k = kinematics_of(l, load_mat(l, &self.f[i]));
+            return finish(l, b, nh, j, jbar, &k, rho, &mut self.out[i]);
+        }
+        let out = &mut self.out[i];
+        *out = [[0.0; LANES]; 12];
+        let mut bad = false;
+        for (lane, t) in self.tets.iter().skip(LANES * i).take(LANES).enumerate() {
+            let mut fl = [Vector3::zeros(); 4];
+            let m = &self.solids[t.mat as usize].material;
+            let jbar = reference::anp_jbar(jn, &t.nodes);
+            bad |= !reference::t4anp_element(m, self.u, t, jac[lane], jbar, &mut fl);
+            put_lane(lane, &fl, out);
+        }
+        bad
+    }
+}
+
 impl BlockOp for AnpForces<'_> {
     /// Whether some element has `J` or `J̄` not > 0 and finite.
     type Output = bool;
 
     #[inline(always)]
-    fn run<L: Lanes>(self, l: L) -> bool {
+    fn run<L: Lanes>(mut self, l: L) -> bool {
         let mut bad = false;
-        let jn = self.jnodal;
-        for (i, ((b, out), jac)) in
-            self.blocks.iter().zip(self.out.iter_mut()).zip(self.jac).enumerate()
-        {
-            match b.law {
-                BlockLaw::NeoHookean(e) => {
-                    // J̄ = ¼ (((J₀ + J₁) + J₂) + J₃), in the scalar order.
-                    let mut jsum = l.splat(0.0);
-                    for (a, nodes) in b.nodes.iter().enumerate() {
-                        let ja = l.load([
-                            jn[nodes[0] as usize],
-                            jn[nodes[1] as usize],
-                            jn[nodes[2] as usize],
-                            jn[nodes[3] as usize],
-                        ]);
-                        jsum = if a == 0 { ja } else { l.add(jsum, ja) };
-                    }
-                    let jbar = l.mul(l.splat(0.25), jsum);
-                    let j = l.load(*jac);
-                    let f = deformation_gradient(l, self.upad, b);
-                    let cof = cofactor(l, &f);
-                    let nh = NhLanes { mu: l.splat(e.mu), kappa: l.splat(e.kappa) };
-                    let i1 = frobenius2(l, &f);
-                    let (alpha, beta) = pk1_coefficients(l, nh, j, jbar, i1, l.load(b.vol));
-                    store_forces(l, b, &f, &cof, alpha, beta, out);
-                    let valid = l.positive_finite_mask(j) & l.positive_finite_mask(jbar);
-                    if valid != 0b1111 {
-                        bad = true;
-                        zero_invalid_lanes(valid, out);
-                    }
+        let n = self.blocks.len();
+        let mut i = 0;
+        while i < n {
+            let group = &self.blocks[i..n.min(i + GROUP)];
+            if let Some(nhs) = group_laws(l, group) {
+                let zero = l.splat(0.0);
+                let (mut j, mut jbar, mut rho) = ([zero; GROUP], [zero; GROUP], [zero; GROUP]);
+                for g in 0..GROUP {
+                    j[g] = l.load(self.jac[i + g]);
+                    jbar[g] = jbar_lanes(l, &group[g], self.jnodal);
                 }
-                BlockLaw::PerElement => {
-                    *out = [[0.0; LANES]; 12];
-                    for (lane, t) in self.tets.iter().skip(LANES * i).take(LANES).enumerate() {
-                        let mut fl = [Vector3::zeros(); 4];
-                        let m = &self.solids[t.mat as usize].material;
-                        let jbar = reference::anp_jbar(jn, &t.nodes);
-                        bad |= !reference::t4anp_element(m, self.u, t, jac[lane], jbar, &mut fl);
-                        put_lane(lane, &fl, out);
-                    }
+                for g in 0..GROUP {
+                    rho[g] = inv_cbrt(l, l.mul(j[g], j[g]));
                 }
+                let mut ks = [kinematics_of(l, load_mat(l, &self.f[i])); GROUP];
+                for g in 1..GROUP {
+                    ks[g] = kinematics_of(l, load_mat(l, &self.f[i + g]));
+                }
+                for g in 0..GROUP {
+                    let out = &mut self.out[i + g];
+                    bad |= finish(l, &group[g], nhs[g], j[g], jbar[g], &ks[g], rho[g], out);
+                }
+                i += GROUP;
+            } else {
+                bad |= self.single(l, i);
+                i += 1;
             }
         }
         bad
