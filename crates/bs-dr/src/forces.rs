@@ -15,7 +15,7 @@ use crate::kernels::h8::H8Forces;
 use crate::kernels::layout::{LANES, SlotPositions};
 use crate::kernels::simd::dispatch;
 use crate::kernels::t4::T4Forces;
-use crate::kernels::t4anp::{AnpForces, BlockMat, Jacobians, nodal_ratio};
+use crate::kernels::t4anp::{AnpForces, Jacobians, nodal_ratio};
 use crate::kernels::tet_block::BlockForces;
 use crate::model::{Model, TetFormulation};
 
@@ -42,8 +42,6 @@ pub struct Workspace {
     tjac: Vec<[f64; LANES]>,
     /// Tet `V J` (T4ANP), blocked.
     tvj: Vec<[f64; LANES]>,
-    /// Tet `F` (T4ANP), blocked.
-    tf: Vec<BlockMat>,
     /// Hex `J`.
     hjac: Vec<f64>,
     /// ANP nodal volume ratios.
@@ -71,11 +69,6 @@ impl Model {
             hslots: vec![Vector3::zeros(); 8 * self.hexes.len()],
             tjac: vec![[0.0; LANES]; nb],
             tvj: vec![[0.0; LANES]; nb],
-            tf: if self.options.tet == TetFormulation::T4Anp {
-                vec![[[0.0; LANES]; 9]; nb]
-            } else {
-                Vec::new()
-            },
             hjac: vec![0.0; self.hexes.len()],
             jnodal: vec![0.0; self.node_count()],
         }
@@ -133,15 +126,12 @@ impl Model {
                     });
             }
             TetFormulation::T4Anp => {
-                // Pass 1: F, J and V J.
+                // Pass 1: J and V J.
                 self.tet_blocks
                     .par_chunks(BLOCKS_PER_TASK)
-                    .zip(ws.tf.par_chunks_mut(BLOCKS_PER_TASK))
                     .zip(ws.tjac.par_chunks_mut(BLOCKS_PER_TASK))
                     .zip(ws.tvj.par_chunks_mut(BLOCKS_PER_TASK))
-                    .for_each(|(((blocks, f), jac), vj)| {
-                        dispatch(Jacobians { blocks, upad, f, jac, vj })
-                    });
+                    .for_each(|((blocks, jac), vj)| dispatch(Jacobians { blocks, upad, jac, vj }));
                 // Pass 2: nodal volume-weighted averages (fixed order per node).
                 let tvj: &[[f64; LANES]] = &ws.tvj;
                 ws.jnodal.par_iter_mut().enumerate().with_min_len(MIN_LEN).for_each(|(n, jn)| {
@@ -150,21 +140,19 @@ impl Model {
                     *jn = nodal_ratio(slots, tvj, self.anp_inv_vol[n]);
                 });
                 // Pass 3: J̄ and the forces.
-                let (jnodal, tjac, tf): (&[f64], &[[f64; LANES]], &[BlockMat]) =
-                    (&ws.jnodal, &ws.tjac, &ws.tf);
+                let (jnodal, tjac): (&[f64], &[[f64; LANES]]) = (&ws.jnodal, &ws.tjac);
                 self.tet_blocks
                     .par_chunks(BLOCKS_PER_TASK)
                     .zip(ws.tslots.par_chunks_mut(BLOCKS_PER_TASK))
                     .zip(tjac.par_chunks(BLOCKS_PER_TASK))
-                    .zip(tf.par_chunks(BLOCKS_PER_TASK))
                     .enumerate()
-                    .for_each(|(task, (((blocks, out), jac), f))| {
+                    .for_each(|(task, ((blocks, out), jac))| {
                         flag(dispatch(AnpForces {
                             blocks,
                             tets: tets_of(task, blocks.len()),
                             solids: &self.solids,
                             u,
-                            f,
+                            upad,
                             jac,
                             jnodal,
                             out,
@@ -185,7 +173,9 @@ impl Model {
         let hslots: &[Vector3<f64>] = &ws.hslots;
         let tslot = |o: u32| {
             let o = o as usize;
-            Vector3::new(tslots[o], tslots[o + LANES], tslots[o + 2 * LANES])
+            let s: &[f64; 2 * LANES + 1] =
+                tslots[o..=o + 2 * LANES].try_into().expect("slot in range");
+            Vector3::new(s[0], s[LANES], s[2 * LANES])
         };
         let SlotPositions { pos, tets } = &self.slot_positions;
         forces.par_iter_mut().enumerate().with_min_len(MIN_LEN).for_each(|(n, fo)| {

@@ -24,8 +24,9 @@ pub(crate) enum BlockLaw {
 /// Four tetrahedra, lane `l` = tet `4b + l`.
 #[derive(Debug, Clone)]
 pub(crate) struct TetBlock {
-    /// Reference gradients: `g[3a + k][l] = ∂N_a/∂X_k` of lane `l`.
-    pub g: [[f64; LANES]; 12],
+    /// Reference gradients of nodes 1, 2, 3: `g[3(a − 1) + k][l] = ∂N_a/∂X_k` of lane `l`
+    /// (`g_0 = −(g_1 + g_2 + g_3)` exactly, as `Model::new` computes it, so it is not kept).
+    pub g: [[f64; LANES]; 9],
     /// Reference volumes.
     pub vol: [f64; LANES],
     /// Node indices: `nodes[a][l]`.
@@ -39,7 +40,7 @@ pub(crate) fn tet_blocks(tets: &[Tet], solids: &[Solid]) -> Vec<TetBlock> {
     tets.chunks(LANES)
         .map(|chunk| {
             let mut b = TetBlock {
-                g: [[0.0; LANES]; 12],
+                g: [[0.0; LANES]; 9],
                 vol: [0.0; LANES],
                 nodes: [[0; LANES]; 4],
                 law: BlockLaw::PerElement,
@@ -47,8 +48,10 @@ pub(crate) fn tet_blocks(tets: &[Tet], solids: &[Solid]) -> Vec<TetBlock> {
             for (l, t) in chunk.iter().enumerate() {
                 for a in 0..4 {
                     b.nodes[a][l] = t.nodes[a];
+                }
+                for a in 1..4 {
                     for k in 0..3 {
-                        b.g[3 * a + k][l] = t.g[a][k];
+                        b.g[3 * (a - 1) + k][l] = t.g[a][k];
                     }
                 }
                 b.vol[l] = t.vol;

@@ -6,29 +6,27 @@
 //!    `r = (J̄/J)^(1/3)`, as one fused evaluation for the Neo-Hookean law (see
 //!    [`pk1_coefficients`]).
 //!
-//! `F` is computed once, in pass 1, and kept (72 bytes per tet) for pass 3, which then reads
-//! neither the displacements nor the node indices for it.
+//! Pass 1 keeps `J` and `V J` (16 bytes per tet); pass 3 recomputes `F` from the
+//! cache-resident displacements. Keeping `F` from pass 1 instead (72 bytes per tet written
+//! and read again) was measured slower on the shared machine: the step is bound by memory
+//! traffic as much as by arithmetic.
 
 use bs_mesh::Vector3;
 
 use super::layout::{LANES, TetBlock};
-use super::neo_hookean::{Mat, NhLanes, cross2, inv_cbrt, pk1_coefficients};
+use super::neo_hookean::{NhLanes, cross2, inv_cbrt, pk1_coefficients};
 use super::reference;
 use super::simd::{BlockOp, Lanes};
 use super::tet_block::{
-    BlockForces, GROUP, Kinematics, deformation_gradient, group_laws, kinematics_of, nh_lanes,
+    BlockForces, GROUP, Kinematics, deformation_gradient, group_laws, kinematics, nh_lanes,
     put_lane, store_forces, zero_invalid_lanes,
 };
 use crate::model::{Solid, Tet};
 
-/// `F` of a block, `[3i + j][lane]`.
-pub(crate) type BlockMat = [[f64; LANES]; 9];
-
-/// Pass 1: `F`, `J` and `V J` of a run of consecutive blocks.
+/// Pass 1: `J` and `V J` of a run of consecutive blocks.
 pub(crate) struct Jacobians<'a> {
     pub blocks: &'a [TetBlock],
     pub upad: &'a [[f64; 4]],
-    pub f: &'a mut [BlockMat],
     pub jac: &'a mut [[f64; LANES]],
     pub vj: &'a mut [[f64; LANES]],
 }
@@ -38,14 +36,8 @@ impl BlockOp for Jacobians<'_> {
 
     #[inline(always)]
     fn run<L: Lanes>(self, l: L) {
-        let blocks = self.blocks.iter().zip(self.f.iter_mut());
-        for (((b, fout), jac), vj) in blocks.zip(self.jac.iter_mut()).zip(self.vj.iter_mut()) {
+        for ((b, jac), vj) in self.blocks.iter().zip(self.jac.iter_mut()).zip(self.vj.iter_mut()) {
             let f = deformation_gradient(l, self.upad, b);
-            for i in 0..3 {
-                for j in 0..3 {
-                    fout[3 * i + j] = l.store(f[i][j]);
-                }
-            }
             let j = l.mul_add(
                 f[0][0],
                 cross2(l, f[1][1], f[2][2], f[1][2], f[2][1]),
@@ -89,23 +81,12 @@ pub(crate) struct AnpForces<'a> {
     pub tets: &'a [Tet],
     pub solids: &'a [Solid],
     pub u: &'a [Vector3<f64>],
-    /// `F` from pass 1.
-    pub f: &'a [BlockMat],
+    pub upad: &'a [[f64; 4]],
     /// `J` from pass 1.
     pub jac: &'a [[f64; LANES]],
     /// `J_n` from pass 2 (per node).
     pub jnodal: &'a [f64],
     pub out: &'a mut [BlockForces],
-}
-
-/// `F` from its stored lanes.
-#[inline(always)]
-fn load_mat<L: Lanes>(l: L, m: &BlockMat) -> Mat<L::V> {
-    [
-        [l.load(m[0]), l.load(m[1]), l.load(m[2])],
-        [l.load(m[3]), l.load(m[4]), l.load(m[5])],
-        [l.load(m[6]), l.load(m[7]), l.load(m[8])],
-    ]
 }
 
 /// `J̄ = ¼ (((J_n0 + J_n1) + J_n2) + J_n3)` of a block's lanes, in the scalar order.
@@ -155,7 +136,7 @@ impl AnpForces<'_> {
         if let Some(nh) = nh_lanes(l, b) {
             let (j, jbar) = (l.load(*jac), jbar_lanes(l, b, jn));
             let rho = inv_cbrt(l, l.mul(j, j));
-            let k = kinematics_of(l, load_mat(l, &self.f[i]));
+            let k = kinematics(l, self.upad, b);
             return finish(l, b, nh, j, jbar, &k, rho, &mut self.out[i]);
         }
         let out = &mut self.out[i];
@@ -193,9 +174,9 @@ impl BlockOp for AnpForces<'_> {
                 for g in 0..GROUP {
                     rho[g] = inv_cbrt(l, l.mul(j[g], j[g]));
                 }
-                let mut ks = [kinematics_of(l, load_mat(l, &self.f[i])); GROUP];
+                let mut ks = [kinematics(l, self.upad, &group[0]); GROUP];
                 for g in 1..GROUP {
-                    ks[g] = kinematics_of(l, load_mat(l, &self.f[i + g]));
+                    ks[g] = kinematics(l, self.upad, &group[g]);
                 }
                 for g in 0..GROUP {
                     let out = &mut self.out[i + g];

@@ -22,7 +22,7 @@ pub(crate) fn deformation_gradient<L: Lanes>(l: L, upad: &[[f64; 4]], b: &TetBlo
         let ua = l.gather_xyz(upad, b.nodes[a]);
         let d = [l.sub(ua[0], u0[0]), l.sub(ua[1], u0[1]), l.sub(ua[2], u0[2])];
         for j in 0..3 {
-            let g = l.load(b.g[3 * a + j]);
+            let g = l.load(b.g[3 * (a - 1) + j]);
             for i in 0..3 {
                 f[i][j] = if a == 1 { l.mul(d[i], g) } else { l.mul_add(d[i], g, f[i][j]) };
             }
@@ -55,7 +55,8 @@ pub(crate) fn store_forces<L: Lanes>(
     // f_1, f_2, f_3 from their gradients, f_0 = −(f_1 + f_2 + f_3) (as g_0 = −Σ g_a).
     let mut f0 = [l.splat(0.0); 3];
     for a in 1..4 {
-        let g = [l.load(b.g[3 * a]), l.load(b.g[3 * a + 1]), l.load(b.g[3 * a + 2])];
+        let r = 3 * (a - 1);
+        let g = [l.load(b.g[r]), l.load(b.g[r + 1]), l.load(b.g[r + 2])];
         for i in 0..3 {
             let v = l.mul_add(p[i][2], g[2], l.mul_add(p[i][1], g[1], l.mul(p[i][0], g[0])));
             out[3 * a + i] = l.store(v);
