@@ -12,10 +12,8 @@ pub(crate) type Mat<V> = [[V; 3]; 3];
 /// (or NaN) is evaluated by the scalar function lane by lane.
 #[inline(always)]
 pub(crate) fn inv_cbrt<L: Lanes>(l: L, x: L::V) -> L::V {
-    let xs = l.store(x);
-    let in_range = |v: f64| (1e-300..=1e300).contains(&v);
-    if !(in_range(xs[0]) && in_range(xs[1]) && in_range(xs[2]) && in_range(xs[3])) {
-        let mut ys = xs;
+    if !l.all_in(x, 1e-300, 1e300) {
+        let mut ys = l.store(x);
         for v in ys.iter_mut() {
             *v = bs_material::inv_cbrt(*v);
         }

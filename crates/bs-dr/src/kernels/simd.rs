@@ -34,6 +34,8 @@ pub(crate) trait Lanes: Copy {
     fn neg_mul_add(self, a: Self::V, b: Self::V, c: Self::V) -> Self::V;
     /// Bit `l` set iff lane `l` is `> 0` and finite (`0 < x < ∞`; NaN fails).
     fn positive_finite_mask(self, v: Self::V) -> u8;
+    /// Whether every lane lies in `[lo, hi]` (NaN does not).
+    fn all_in(self, v: Self::V, lo: f64, hi: f64) -> bool;
     /// The bit-level first guess of `x^(−1/3)` of `bs_material::inv_cbrt`,
     /// `from_bits(0x553e_f100_0000_0000 − bits(x)/3)` (within 3.5% for normal `x > 0`); the
     /// AVX2 version divides the high 32 bits only (a relative change below 1e-6 of a guess
@@ -51,11 +53,21 @@ pub(crate) const INV_CBRT_MAGIC: u64 = 0x553e_f100_0000_0000;
 /// Runs `op` on the best lanes of this CPU (AVX2/FMA if present, else [`Portable`]).
 #[inline]
 pub(crate) fn dispatch<O: BlockOp>(op: O) -> O::Output {
+    #[cfg(test)]
+    if FORCE_PORTABLE.get() {
+        return op.run(Portable);
+    }
     #[cfg(target_arch = "x86_64")]
     if let Some(v3) = pulp::x86::V3::try_new() {
         return v3.vectorize(OnAvx(v3, op));
     }
     op.run(Portable)
+}
+
+#[cfg(test)]
+thread_local! {
+    /// Tests set this on a thread to run [`dispatch`] there on [`Portable`] lanes.
+    pub(crate) static FORCE_PORTABLE: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
 }
 
 /// Whether [`dispatch`] takes the AVX2/FMA path on this CPU.
@@ -152,6 +164,10 @@ impl Lanes for Portable {
         m
     }
     #[inline(always)]
+    fn all_in(self, v: [f64; 4], lo: f64, hi: f64) -> bool {
+        v.iter().all(|x| (lo..=hi).contains(x))
+    }
+    #[inline(always)]
     fn inv_cbrt_guess(self, x: [f64; 4]) -> [f64; 4] {
         let g = |v: f64| f64::from_bits(INV_CBRT_MAGIC - v.to_bits() / 3);
         [g(x[0]), g(x[1]), g(x[2]), g(x[3])]
@@ -222,6 +238,14 @@ impl Lanes for Avx {
         let pos = avx._mm256_cmp_pd::<_CMP_GT_OQ>(v, avx._mm256_setzero_pd());
         let fin = avx._mm256_cmp_pd::<_CMP_LT_OQ>(v, avx._mm256_set1_pd(f64::INFINITY));
         avx._mm256_movemask_pd(avx._mm256_and_pd(pos, fin)) as u8
+    }
+    #[inline(always)]
+    fn all_in(self, v: Self::V, lo: f64, hi: f64) -> bool {
+        use core::arch::x86_64::{_CMP_GE_OQ, _CMP_LE_OQ};
+        let avx = self.0.avx;
+        let ge = avx._mm256_cmp_pd::<_CMP_GE_OQ>(v, avx._mm256_set1_pd(lo));
+        let le = avx._mm256_cmp_pd::<_CMP_LE_OQ>(v, avx._mm256_set1_pd(hi));
+        avx._mm256_movemask_pd(avx._mm256_and_pd(ge, le)) == 0b1111
     }
     #[inline(always)]
     fn inv_cbrt_guess(self, x: Self::V) -> Self::V {

@@ -58,10 +58,9 @@ impl BlockOp for Jacobians<'_> {
 #[inline]
 pub(crate) fn nodal_ratio(slots: &[u32], vj: &[[f64; LANES]], inv_vol: f64) -> f64 {
     // Two partial sums (even and odd positions) for two independent add chains.
-    let vj_of = |s: u32| {
-        let t = s as usize / 4;
-        vj[t / LANES][t % LANES]
-    };
+    // Blocked `[t / 4][t % 4]` is tet `t` in the flattened buffer.
+    let vj = vj.as_flattened();
+    let vj_of = |s: u32| vj[s as usize / 4];
     let mut pairs = slots.chunks_exact(2);
     let (mut even, mut odd) = (0.0, 0.0);
     for p in &mut pairs {
