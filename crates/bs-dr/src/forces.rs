@@ -12,8 +12,8 @@ use bs_mesh::Vector3;
 use rayon::prelude::*;
 
 use crate::kernels::h8::H8Forces;
-use crate::kernels::layout::{LANES, SlotPositions};
-use crate::kernels::simd::dispatch;
+use crate::kernels::layout::LANES;
+use crate::kernels::simd::{BlockOp, Lanes, dispatch};
 use crate::kernels::t4::T4Forces;
 use crate::kernels::t4anp::{AnpForces, Jacobians, nodal_ratio};
 use crate::kernels::tet_block::BlockForces;
@@ -34,10 +34,11 @@ const HEXES_PER_TASK: usize = 128;
 pub struct Workspace {
     /// Displacements padded to `[x, y, z, 0]` (one aligned load per node in the kernels).
     upad: Vec<[f64; 4]>,
-    /// Tet force slots, blocked: `[block][3a + component][lane]`.
+    /// Tet force slots, per block of four tets, tet-major: slot `4t + a` at `3(4t + a)` of
+    /// the flattened buffer (see [`BlockForces`]).
     tslots: Vec<BlockForces>,
     /// Hex force slots, 8 per hex.
-    hslots: Vec<Vector3<f64>>,
+    hslots: Vec<[f64; 3]>,
     /// Tet `J`, blocked.
     tjac: Vec<[f64; LANES]>,
     /// Tet `V J` (T4ANP), blocked.
@@ -65,8 +66,9 @@ impl Model {
         let nb = self.tet_blocks.len();
         Workspace {
             upad: vec![[0.0; 4]; self.node_count()],
-            tslots: vec![[[0.0; LANES]; 12]; nb],
-            hslots: vec![Vector3::zeros(); 8 * self.hexes.len()],
+            // One spare block and slot: the gather reads every slot as four values.
+            tslots: vec![[[0.0; LANES]; 12]; nb + 1],
+            hslots: vec![[0.0; 3]; 8 * self.hexes.len() + 1],
             tjac: vec![[0.0; LANES]; nb],
             tvj: vec![[0.0; LANES]; nb],
             hjac: vec![0.0; self.hexes.len()],
@@ -136,7 +138,7 @@ impl Model {
                 let tvj: &[[f64; LANES]] = &ws.tvj;
                 ws.jnodal.par_iter_mut().enumerate().with_min_len(MIN_LEN).for_each(|(n, jn)| {
                     let lo = self.gather_ptr[n] as usize;
-                    let slots = &self.gather_slot[lo..lo + self.slot_positions.tets[n] as usize];
+                    let slots = &self.gather_slot[lo..lo + self.gather_tets[n] as usize];
                     *jn = nodal_ratio(slots, tvj, self.anp_inv_vol[n]);
                 });
                 // Pass 3: J̄ and the forces.
@@ -167,39 +169,10 @@ impl Model {
             .for_each(|((hexes, out), jac)| {
                 flag(dispatch(H8Forces { hexes, solids: &self.solids, upad, out, jac }))
             });
-        // Gather per node in slot order: tet slots (blocked buffer), then hex slots; even and
-        // odd positions in two partial sums (two independent add chains), added at the end.
-        let tslots: &[f64] = ws.tslots.as_flattened().as_flattened();
-        let hslots: &[Vector3<f64>] = &ws.hslots;
-        let tslot = |o: u32| {
-            let o = o as usize;
-            let s: &[f64; 2 * LANES + 1] =
-                tslots[o..=o + 2 * LANES].try_into().expect("slot in range");
-            Vector3::new(s[0], s[LANES], s[2 * LANES])
-        };
-        let SlotPositions { pos, tets } = &self.slot_positions;
-        forces.par_iter_mut().enumerate().with_min_len(MIN_LEN).for_each(|(n, fo)| {
-            let lo = self.gather_ptr[n] as usize;
-            let hi = self.gather_ptr[n + 1] as usize;
-            let (tpos, hpos) = pos[lo..hi].split_at(tets[n] as usize);
-            let (mut even, mut odd) = (Vector3::zeros(), Vector3::zeros());
-            let mut pairs = tpos.chunks_exact(2);
-            for p in &mut pairs {
-                even += tslot(p[0]);
-                odd += tslot(p[1]);
-            }
-            if let [o] = pairs.remainder() {
-                even += tslot(*o);
-            }
-            let mut pairs = hpos.chunks_exact(2);
-            for p in &mut pairs {
-                even += hslots[p[0] as usize];
-                odd += hslots[p[1] as usize];
-            }
-            if let [o] = pairs.remainder() {
-                even += hslots[*o as usize];
-            }
-            *fo = even + odd;
+        // Gather per node in slot order: tet slots, then hex slots.
+        let (tslots, hslots) = (ws.tslots.as_flattened().as_flattened(), ws.hslots.as_flattened());
+        forces.par_chunks_mut(MIN_LEN).enumerate().for_each(|(chunk, forces)| {
+            dispatch(Gather { model: self, first: chunk * MIN_LEN, tslots, hslots, forces })
         });
         if bad.load(Ordering::Relaxed) {
             let tjac = &ws.tjac;
@@ -240,5 +213,60 @@ impl Model {
             element_id: self.element_ids[0],
             jacobian: f64::NAN,
         })
+    }
+}
+
+/// The gather of a run of nodes starting at `first`: each node's slots in `gather_slot`
+/// order, tet slots then hex slots, every slot read as one vector of four (x, y, z and
+/// the next value, ignored), summed in two interleaved partial sums (even and odd
+/// positions; two independent add chains) added at the end. The order is fixed, so the
+/// result does not depend on the thread count.
+struct Gather<'a> {
+    model: &'a Model,
+    first: usize,
+    /// Flattened tet slots: slot `s` at `3s`.
+    tslots: &'a [f64],
+    /// Flattened hex slots: hex slot `h` at `3h`.
+    hslots: &'a [f64],
+    forces: &'a mut [Vector3<f64>],
+}
+
+/// Four values of `buf` from `3 i`.
+#[inline(always)]
+fn slot4(buf: &[f64], i: usize) -> [f64; 4] {
+    buf[3 * i..3 * i + 4].try_into().expect("slot in range")
+}
+
+impl BlockOp for Gather<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<L: Lanes>(self, l: L) {
+        let m = self.model;
+        let nt4 = 4 * m.tets.len();
+        for (k, fo) in self.forces.iter_mut().enumerate() {
+            let n = self.first + k;
+            let slots = &m.gather_slot[m.gather_ptr[n] as usize..m.gather_ptr[n + 1] as usize];
+            let (ts, hs) = slots.split_at(m.gather_tets[n] as usize);
+            let (mut even, mut odd) = (l.splat(0.0), l.splat(0.0));
+            let mut pairs = ts.chunks_exact(2);
+            for p in &mut pairs {
+                even = l.add(even, l.load(slot4(self.tslots, p[0] as usize)));
+                odd = l.add(odd, l.load(slot4(self.tslots, p[1] as usize)));
+            }
+            if let [s] = pairs.remainder() {
+                even = l.add(even, l.load(slot4(self.tslots, *s as usize)));
+            }
+            let mut pairs = hs.chunks_exact(2);
+            for p in &mut pairs {
+                even = l.add(even, l.load(slot4(self.hslots, p[0] as usize - nt4)));
+                odd = l.add(odd, l.load(slot4(self.hslots, p[1] as usize - nt4)));
+            }
+            if let [s] = pairs.remainder() {
+                even = l.add(even, l.load(slot4(self.hslots, *s as usize - nt4)));
+            }
+            let v = l.store(l.add(even, odd));
+            *fo = Vector3::new(v[0], v[1], v[2]);
+        }
     }
 }

@@ -6,7 +6,7 @@ use bs_material::{Elastic, Material, Tangent};
 use bs_mesh::{ElementKind, Mesh, Point3};
 use nalgebra::{SMatrix, SymmetricEigen};
 
-use crate::kernels::layout::{SlotPositions, TetBlock, slot_positions, tet_blocks};
+use crate::kernels::layout::{TetBlock, tet_blocks, tet_slot_counts};
 
 /// Formulation used for linear tetrahedra.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -181,8 +181,8 @@ pub struct Model {
     /// `tets` in blocks of four (structure of arrays) for the SIMD kernels; derived from
     /// `tets` and `solids`, padded at the end.
     pub(crate) tet_blocks: Vec<TetBlock>,
-    /// Where the kernels leave each of `gather_slot`'s slots (derived).
-    pub(crate) slot_positions: SlotPositions,
+    /// Number of tet slots (the first ones) of every node in `gather_slot` (derived).
+    pub(crate) gather_tets: Vec<u32>,
 }
 
 /// Gauss points of the 2×2×2 rule (exact for the mean gradients of a trilinear hex).
@@ -499,7 +499,7 @@ impl Model {
         }
         let anp_inv_vol = anp_vol.iter().map(|&v| if v > 0.0 { 1.0 / v } else { 0.0 }).collect();
         let tet_blocks = tet_blocks(&tets, solids);
-        let slot_positions = slot_positions(&gather_ptr, &gather_slot, tets.len());
+        let gather_tets = tet_slot_counts(&gather_ptr, &gather_slot, tets.len());
         Ok(Model {
             reference: mesh.nodes.clone(),
             node_ids: if mesh.node_ids.len() == nn {
@@ -519,7 +519,7 @@ impl Model {
             gather_slot,
             anp_inv_vol,
             tet_blocks,
-            slot_positions,
+            gather_tets,
         })
     }
 

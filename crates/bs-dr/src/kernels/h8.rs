@@ -3,7 +3,6 @@
 //! nodal forces `V P g_a` and the hourglass forces `K_hg u` are vector multiply-adds; the
 //! stress is the scalar `Material::pk1_fj` (any law).
 
-use bs_mesh::Vector3;
 use nalgebra::Matrix3;
 
 use super::reference::det3;
@@ -16,7 +15,8 @@ pub(crate) struct H8Forces<'a> {
     pub solids: &'a [Solid],
     /// Displacements as `[x, y, z, 0]`.
     pub upad: &'a [[f64; 4]],
-    pub out: &'a mut [Vector3<f64>],
+    /// 8 slots per hex.
+    pub out: &'a mut [[f64; 3]],
     pub jac: &'a mut [f64],
 }
 
@@ -53,7 +53,7 @@ impl BlockOp for H8Forces<'_> {
             *jac = j;
             if !(j > 0.0 && j.is_finite()) {
                 bad = true;
-                out.iter_mut().for_each(|o| *o = Vector3::zeros());
+                out.fill([0.0; 3]);
                 continue;
             }
             let p = self.solids[h.mat as usize].material.pk1_fj(&f, j) * h.vol;
@@ -71,7 +71,7 @@ impl BlockOp for H8Forces<'_> {
                     acc = l.mul_add(l.splat(h.hg[a][b]), ua[b], acc);
                 }
                 let v = l.store(acc);
-                out[a] = Vector3::new(v[0], v[1], v[2]);
+                out[a] = [v[0], v[1], v[2]];
             }
         }
         bad

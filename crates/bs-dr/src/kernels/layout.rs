@@ -70,41 +70,13 @@ pub(crate) fn tet_blocks(tets: &[Tet], solids: &[Solid]) -> Vec<TetBlock> {
         .collect()
 }
 
-/// The force slots of every node as positions in the buffers the kernels write, in the
-/// order of `Model::gather_slot` (same CSR pointer `Model::gather_ptr`): for tet slots the
-/// [`slot_offset`] in the blocked tet buffer, for hex slots the index in the hex buffer.
-#[derive(Debug, Clone)]
-pub(crate) struct SlotPositions {
-    /// Position of each slot.
-    pub pos: Vec<u32>,
-    /// Number of tet slots of each node (they come first in its range).
-    pub tets: Vec<u32>,
-}
-
-/// Builds the [`SlotPositions`] of a model with `nt` tets.
-pub(crate) fn slot_positions(gather_ptr: &[u32], gather_slot: &[u32], nt: usize) -> SlotPositions {
-    let pos = gather_slot
-        .iter()
-        .map(|&s| {
-            let s = s as usize;
-            if s < 4 * nt { slot_offset(s) as u32 } else { (s - 4 * nt) as u32 }
-        })
-        .collect();
-    let tets = gather_ptr
+/// Number of tet slots of every node (they come first in its `gather_slot` range).
+pub(crate) fn tet_slot_counts(gather_ptr: &[u32], gather_slot: &[u32], nt: usize) -> Vec<u32> {
+    gather_ptr
         .windows(2)
         .map(|w| {
             let slots = &gather_slot[w[0] as usize..w[1] as usize];
             slots.partition_point(|&s| (s as usize) < 4 * nt) as u32
         })
-        .collect();
-    SlotPositions { pos, tets }
-}
-
-/// Index of tet slot `s = 4t + a` (tet `t`, local node `a`) in the blocked force buffer
-/// (`[block][3a + component][lane]` flattened): the x component; y and z follow at
-/// `+LANES` and `+2·LANES`.
-#[inline(always)]
-pub(crate) fn slot_offset(s: usize) -> usize {
-    let (t, a) = (s / 4, s % 4);
-    ((t / LANES) * 12 + 3 * a) * LANES + t % LANES
+        .collect()
 }

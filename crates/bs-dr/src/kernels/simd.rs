@@ -41,6 +41,8 @@ pub(crate) trait Lanes: Copy {
     /// AVX2 version divides the high 32 bits only (a relative change below 1e-6 of a guess
     /// that the iterations refine to round-off anyway).
     fn inv_cbrt_guess(self, x: Self::V) -> Self::V;
+    /// 4×4 transpose: lane `l` of output `k` is lane `k` of input `l`.
+    fn transpose(self, r: [Self::V; 4]) -> [Self::V; 4];
     /// Transposed load of the x, y and z components of four padded nodal vectors
     /// `p[n[0]], …, p[n[3]]` (`[x, y, z, 0]` each): four full-width loads and a 4×4 transpose
     /// instead of twelve scalar gathers.
@@ -164,6 +166,15 @@ impl Lanes for Portable {
         m
     }
     #[inline(always)]
+    fn transpose(self, r: [[f64; 4]; 4]) -> [[f64; 4]; 4] {
+        [
+            [r[0][0], r[1][0], r[2][0], r[3][0]],
+            [r[0][1], r[1][1], r[2][1], r[3][1]],
+            [r[0][2], r[1][2], r[2][2], r[3][2]],
+            [r[0][3], r[1][3], r[2][3], r[3][3]],
+        ]
+    }
+    #[inline(always)]
     fn all_in(self, v: [f64; 4], lo: f64, hi: f64) -> bool {
         v.iter().all(|x| (lo..=hi).contains(x))
     }
@@ -240,6 +251,20 @@ impl Lanes for Avx {
         avx._mm256_movemask_pd(avx._mm256_and_pd(pos, fin)) as u8
     }
     #[inline(always)]
+    fn transpose(self, r: [Self::V; 4]) -> [Self::V; 4] {
+        let avx = self.0.avx;
+        let t0 = avx._mm256_unpacklo_pd(r[0], r[1]); // r0_0 r1_0 r0_2 r1_2
+        let t1 = avx._mm256_unpackhi_pd(r[0], r[1]); // r0_1 r1_1 r0_3 r1_3
+        let t2 = avx._mm256_unpacklo_pd(r[2], r[3]);
+        let t3 = avx._mm256_unpackhi_pd(r[2], r[3]);
+        [
+            avx._mm256_permute2f128_pd::<0x20>(t0, t2),
+            avx._mm256_permute2f128_pd::<0x20>(t1, t3),
+            avx._mm256_permute2f128_pd::<0x31>(t0, t2),
+            avx._mm256_permute2f128_pd::<0x31>(t1, t3),
+        ]
+    }
+    #[inline(always)]
     fn all_in(self, v: Self::V, lo: f64, hi: f64) -> bool {
         use core::arch::x86_64::{_CMP_GE_OQ, _CMP_LE_OQ};
         let avx = self.0.avx;
@@ -288,7 +313,7 @@ mod tests {
 
     struct Probe;
     impl BlockOp for Probe {
-        type Output = ([f64; 4], [[f64; 4]; 3], u8);
+        type Output = ([f64; 4], [[f64; 4]; 3], u8, [[f64; 4]; 4]);
         #[inline(always)]
         fn run<L: Lanes>(self, l: L) -> Self::Output {
             let a = l.load([1.0, 2.0, 3.0, 4.0]);
@@ -299,7 +324,9 @@ mod tests {
                 (0..6).map(|i| [i as f64, 10.0 + i as f64, 20.0 + i as f64, 0.0]).collect();
             let g = l.gather_xyz(&p, [5, 0, 3, 3]).map(|v| l.store(v));
             let m = l.positive_finite_mask(l.load([1.0, -1.0, f64::INFINITY, f64::NAN]));
-            (l.store(r), g, m)
+            let t =
+                l.transpose([0.0, 4.0, 8.0, 12.0].map(|s| l.load([s, s + 1.0, s + 2.0, s + 3.0])));
+            (l.store(r), g, m, t.map(|v| l.store(v)))
         }
     }
 
@@ -311,5 +338,6 @@ mod tests {
         assert_eq!(p.1[0], [5.0, 0.0, 3.0, 3.0]);
         assert_eq!(p.1[2], [25.0, 20.0, 23.0, 23.0]);
         assert_eq!(p.2, 0b0001);
+        assert_eq!(p.3[1], [1.0, 5.0, 9.0, 13.0]);
     }
 }

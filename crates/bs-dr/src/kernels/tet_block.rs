@@ -8,7 +8,9 @@ use super::layout::{BlockLaw, LANES, TetBlock};
 use super::neo_hookean::{Mat, NhLanes, cofactor, det_from_cofactor, frobenius2};
 use super::simd::Lanes;
 
-/// Forces of one block: `[3a + component][lane]`.
+/// Forces of one block, tet-major: the 48 values `[lane][3a + component]` as 12 rows of
+/// four, so that tet `t`'s slot `s = 4t + a` starts at `3s` in the flattened buffer, as in
+/// the scalar `Vec<Vector3>` slot layout, and the gather reads each slot as one vector.
 pub(crate) type BlockForces = [[f64; LANES]; 12];
 
 /// `F = I + Σ_a u_a ⊗ g_a` for the four lanes of `b`; `upad` holds `[x, y, z, 0]` per node.
@@ -52,19 +54,24 @@ pub(crate) fn store_forces<L: Lanes>(
             p[i][j] = l.mul_add(alpha, f[i][j], l.mul(beta, cof[i][j]));
         }
     }
-    // f_1, f_2, f_3 from their gradients, f_0 = −(f_1 + f_2 + f_3) (as g_0 = −Σ g_a).
-    let mut f0 = [l.splat(0.0); 3];
+    // f_1, f_2, f_3 from their gradients, f_0 = −(f_1 + f_2 + f_3) (as g_0 = −Σ g_a);
+    // rows[3a + i] holds component i of f_a, one tet per lane.
+    let mut rows = [l.splat(0.0); 12];
     for a in 1..4 {
         let r = 3 * (a - 1);
         let g = [l.load(b.g[r]), l.load(b.g[r + 1]), l.load(b.g[r + 2])];
         for i in 0..3 {
             let v = l.mul_add(p[i][2], g[2], l.mul_add(p[i][1], g[1], l.mul(p[i][0], g[0])));
-            out[3 * a + i] = l.store(v);
-            f0[i] = l.sub(f0[i], v);
+            rows[3 * a + i] = v;
+            rows[i] = l.sub(rows[i], v);
         }
     }
-    for i in 0..3 {
-        out[i] = l.store(f0[i]);
+    // Tet-major: transposing rows 4k..4k+3 gives, for tet l, its values 4k..4k+3.
+    for k in 0..3 {
+        let t = l.transpose([rows[4 * k], rows[4 * k + 1], rows[4 * k + 2], rows[4 * k + 3]]);
+        for lane in 0..LANES {
+            out[3 * lane + k] = l.store(t[lane]);
+        }
     }
 }
 
@@ -73,9 +80,7 @@ pub(crate) fn store_forces<L: Lanes>(
 pub(crate) fn zero_invalid_lanes(valid: u8, out: &mut BlockForces) {
     for l in 0..LANES {
         if valid & (1 << l) == 0 {
-            for row in out.iter_mut() {
-                row[l] = 0.0;
-            }
+            out[3 * l..3 * l + 3].fill([0.0; LANES]);
         }
     }
 }
@@ -83,9 +88,10 @@ pub(crate) fn zero_invalid_lanes(valid: u8, out: &mut BlockForces) {
 /// Copies the four nodal forces of one element into lane `l` of a block's slots.
 #[inline(always)]
 pub(crate) fn put_lane(lane: usize, f: &[Vector3<f64>; 4], out: &mut BlockForces) {
+    let values = out[3 * lane..3 * lane + 3].as_flattened_mut();
     for a in 0..4 {
         for i in 0..3 {
-            out[3 * a + i][lane] = f[a][i];
+            values[3 * a + i] = f[a][i];
         }
     }
 }
