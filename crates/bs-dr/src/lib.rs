@@ -50,9 +50,9 @@
 //! * Newton supports T4 and H8 (not T4ANP, not contact) and exists to check DR.
 //!
 //! Modules: [`model`] (precomputation), [`forces`] (deterministic parallel assembly of the
-//! element kernels; the kernels themselves live in the private `kernels` module: SIMD
-//! across blocks of four tets, H8, and the scalar reference), [`loads`], [`contact`] (the seam), [`solver`] (trait, report, errors),
-//! [`dr`], [`newton`].
+//! element kernels, which live in the private `kernels` module: SIMD across blocks of four
+//! tets with runtime dispatch, H8, and the scalar reference), [`loads`], [`contact`] (the
+//! seam), [`solver`] (trait, report, errors), [`dr`], [`newton`].
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the tensor formulas
 
