@@ -11,7 +11,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use bs_mesh::Vector3;
 use rayon::prelude::*;
 
-use crate::kernels::h8::H8Forces;
+use crate::kernels::h8::{H8Forces, HexBlockForces};
 use crate::kernels::layout::LANES;
 use crate::kernels::simd::{BlockOp, Lanes, dispatch};
 use crate::kernels::t4::T4Forces;
@@ -25,8 +25,8 @@ pub(crate) const MIN_LEN: usize = 512;
 /// Tet blocks per rayon task (a fixed partition: results do not depend on it).
 const BLOCKS_PER_TASK: usize = 64;
 
-/// Hexes per rayon task.
-const HEXES_PER_TASK: usize = 128;
+/// Hex blocks per rayon task.
+const HEX_BLOCKS_PER_TASK: usize = 32;
 
 /// Caller-owned scratch buffers for [`Model::internal_forces_into`]; allocate once with
 /// [`Model::workspace`] and reuse every step.
@@ -37,14 +37,15 @@ pub struct Workspace {
     /// Tet force slots, per block of four tets, tet-major: slot `4t + a` at `3(4t + a)` of
     /// the flattened buffer (see [`BlockForces`]).
     tslots: Vec<BlockForces>,
-    /// Hex force slots, 8 per hex.
-    hslots: Vec<[f64; 3]>,
+    /// Hex force slots, per block of four hexes, hex-major: hex slot `8h + a` at
+    /// `3(8h + a)` of the flattened buffer (see [`HexBlockForces`]).
+    hslots: Vec<HexBlockForces>,
     /// Tet `J`, blocked.
     tjac: Vec<[f64; LANES]>,
     /// Tet `V J` (T4ANP), blocked.
     tvj: Vec<[f64; LANES]>,
-    /// Hex `J`.
-    hjac: Vec<f64>,
+    /// Hex `J`, blocked.
+    hjac: Vec<[f64; LANES]>,
     /// ANP nodal volume ratios.
     jnodal: Vec<f64>,
 }
@@ -68,10 +69,10 @@ impl Model {
             upad: vec![[0.0; 4]; self.node_count()],
             // One spare block and slot: the gather reads every slot as four values.
             tslots: vec![[[0.0; LANES]; 12]; nb + 1],
-            hslots: vec![[0.0; 3]; 8 * self.hexes.len() + 1],
+            hslots: vec![[[0.0; LANES]; 24]; self.hex_blocks.len() + 1],
             tjac: vec![[0.0; LANES]; nb],
             tvj: vec![[0.0; LANES]; nb],
-            hjac: vec![0.0; self.hexes.len()],
+            hjac: vec![[0.0; LANES]; self.hex_blocks.len()],
             jnodal: vec![0.0; self.node_count()],
         }
     }
@@ -162,21 +163,27 @@ impl Model {
                     });
             }
         }
-        self.hexes
-            .par_chunks(HEXES_PER_TASK)
-            .zip(ws.hslots.par_chunks_mut(8 * HEXES_PER_TASK))
-            .zip(ws.hjac.par_chunks_mut(HEXES_PER_TASK))
-            .for_each(|((hexes, out), jac)| {
-                flag(dispatch(H8Forces { hexes, solids: &self.solids, upad, out, jac }))
+        let nh = self.hexes.len();
+        self.hex_blocks
+            .par_chunks(HEX_BLOCKS_PER_TASK)
+            .zip(ws.hslots.par_chunks_mut(HEX_BLOCKS_PER_TASK))
+            .zip(ws.hjac.par_chunks_mut(HEX_BLOCKS_PER_TASK))
+            .enumerate()
+            .for_each(|(task, ((blocks, out), jac))| {
+                let lo = (task * HEX_BLOCKS_PER_TASK * LANES).min(nh);
+                let hexes = &self.hexes[lo..(lo + blocks.len() * LANES).min(nh)];
+                let solids = &self.solids;
+                flag(dispatch(H8Forces { blocks, hexes, solids, u, upad, out, jac }))
             });
         // Gather per node in slot order: tet slots, then hex slots.
-        let (tslots, hslots) = (ws.tslots.as_flattened().as_flattened(), ws.hslots.as_flattened());
+        let tslots = ws.tslots.as_flattened().as_flattened();
+        let hslots = ws.hslots.as_flattened().as_flattened();
         forces.par_chunks_mut(MIN_LEN).enumerate().for_each(|(chunk, forces)| {
             dispatch(Gather { model: self, first: chunk * MIN_LEN, tslots, hslots, forces })
         });
         if bad.load(Ordering::Relaxed) {
-            let tjac = &ws.tjac;
-            return Err(self.first_inversion(|t| tjac[t / LANES][t % LANES], &ws.hjac, &ws.jnodal));
+            let (tjac, hjac) = (ws.tjac.as_flattened(), ws.hjac.as_flattened());
+            return Err(self.first_inversion(|t| tjac[t], &hjac[..nh], &ws.jnodal));
         }
         Ok(())
     }

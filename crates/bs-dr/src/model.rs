@@ -6,7 +6,7 @@ use bs_material::{Elastic, Material, Tangent};
 use bs_mesh::{ElementKind, Mesh, Point3};
 use nalgebra::{SMatrix, SymmetricEigen};
 
-use crate::kernels::layout::{TetBlock, tet_blocks, tet_slot_counts};
+use crate::kernels::layout::{HexBlock, TetBlock, hex_blocks, tet_blocks, tet_slot_counts};
 
 /// Formulation used for linear tetrahedra.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -181,6 +181,8 @@ pub struct Model {
     /// `tets` in blocks of four (structure of arrays) for the SIMD kernels; derived from
     /// `tets` and `solids`, padded at the end.
     pub(crate) tet_blocks: Vec<TetBlock>,
+    /// `hexes` in blocks of four for the SIMD kernel (derived, padded at the end).
+    pub(crate) hex_blocks: Vec<HexBlock>,
     /// Number of tet slots (the first ones) of every node in `gather_slot` (derived).
     pub(crate) gather_tets: Vec<u32>,
 }
@@ -499,6 +501,7 @@ impl Model {
         }
         let anp_inv_vol = anp_vol.iter().map(|&v| if v > 0.0 { 1.0 / v } else { 0.0 }).collect();
         let tet_blocks = tet_blocks(&tets, solids);
+        let hex_blocks = hex_blocks(&hexes, solids);
         let gather_tets = tet_slot_counts(&gather_ptr, &gather_slot, tets.len());
         Ok(Model {
             reference: mesh.nodes.clone(),
@@ -519,6 +522,7 @@ impl Model {
             gather_slot,
             anp_inv_vol,
             tet_blocks,
+            hex_blocks,
             gather_tets,
         })
     }

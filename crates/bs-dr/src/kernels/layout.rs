@@ -1,12 +1,13 @@
-//! The blocked (structure-of-arrays) copy of the tetrahedra that the SIMD kernels read:
-//! tets `4b … 4b+3` form block `b`, one tet per lane. Derived in `Model::new` from
-//! `Model::tets`, which stays the reference (array-of-structures) data for every other
-//! reader. The last block is padded with inert lanes (zero gradients and volume, node 0:
-//! `F = I`, zero force), whose slots no node gathers.
+//! The blocked (structure-of-arrays) copies of the elements that the SIMD kernels read:
+//! tets (hexes) `4b … 4b+3` form block `b`, one element per lane. Derived in `Model::new`
+//! from `Model::tets` and `Model::hexes`, which stay the reference (array-of-structures)
+//! data for every other reader. The last block is padded with inert lanes (zero gradients,
+//! volume and hourglass matrix, node 0: `F = I`, zero force), whose slots no node gathers.
 
 use bs_material::{Elastic, Material};
 
-use crate::model::{Solid, Tet};
+use super::h8::sym_index;
+use crate::model::{Hex, Solid, Tet};
 
 /// Elements per block (f64 lanes of a 256-bit vector).
 pub(crate) const LANES: usize = 4;
@@ -35,6 +36,64 @@ pub(crate) struct TetBlock {
     pub law: BlockLaw,
 }
 
+/// Four hexahedra, lane `l` = hex `4b + l`.
+#[derive(Debug, Clone)]
+pub(crate) struct HexBlock {
+    /// Mean gradients: `g[3a + k][l]` of lane `l`.
+    pub g: [[f64; LANES]; 24],
+    /// Hourglass matrices (symmetric), upper triangle row by row (see `h8::sym_index`).
+    pub hg: [[f64; LANES]; 36],
+    /// Reference volumes.
+    pub vol: [f64; LANES],
+    /// Node indices: `nodes[a][l]`.
+    pub nodes: [[u32; LANES]; 8],
+    /// The block's stress evaluation.
+    pub law: BlockLaw,
+}
+
+/// The law of a run of elements with materials `mats`.
+fn block_law(mats: impl Iterator<Item = u32> + Clone, solids: &[Solid]) -> BlockLaw {
+    let law = |m: u32| match solids[m as usize].material {
+        Material::NeoHookean(e) => Some(e),
+        _ => None,
+    };
+    let first = mats.clone().next().and_then(law);
+    match first {
+        Some(e) if mats.map(law).all(|l| l == Some(e)) => BlockLaw::NeoHookean(e),
+        _ => BlockLaw::PerElement,
+    }
+}
+
+/// Builds the blocks of `hexes` (materials from `solids`). Padded lanes are inert (zero
+/// gradients, volume and hourglass matrix, node 0).
+pub(crate) fn hex_blocks(hexes: &[Hex], solids: &[Solid]) -> Vec<HexBlock> {
+    hexes
+        .chunks(LANES)
+        .map(|chunk| {
+            let mut b = HexBlock {
+                g: [[0.0; LANES]; 24],
+                hg: [[0.0; LANES]; 36],
+                vol: [0.0; LANES],
+                nodes: [[0; LANES]; 8],
+                law: block_law(chunk.iter().map(|h| h.mat), solids),
+            };
+            for (l, h) in chunk.iter().enumerate() {
+                for a in 0..8 {
+                    b.nodes[a][l] = h.nodes[a];
+                    for k in 0..3 {
+                        b.g[3 * a + k][l] = h.g[a][k];
+                    }
+                    for c in a..8 {
+                        b.hg[sym_index(a, c)][l] = h.hg[a][c];
+                    }
+                }
+                b.vol[l] = h.vol;
+            }
+            b
+        })
+        .collect()
+}
+
 /// Builds the blocks of `tets` (materials from `solids`).
 pub(crate) fn tet_blocks(tets: &[Tet], solids: &[Solid]) -> Vec<TetBlock> {
     tets.chunks(LANES)
@@ -56,15 +115,7 @@ pub(crate) fn tet_blocks(tets: &[Tet], solids: &[Solid]) -> Vec<TetBlock> {
                 }
                 b.vol[l] = t.vol;
             }
-            let law = |t: &Tet| match solids[t.mat as usize].material {
-                Material::NeoHookean(e) => Some(e),
-                _ => None,
-            };
-            if let Some(e) = law(&chunk[0])
-                && chunk.iter().all(|t| law(t) == Some(e))
-            {
-                b.law = BlockLaw::NeoHookean(e);
-            }
+            b.law = block_law(chunk.iter().map(|t| t.mat), solids);
             b
         })
         .collect()

@@ -3,7 +3,8 @@
 //!
 //! * [`simd`]: four f64 lanes (AVX2/FMA through `pulp`'s safe token, or a portable
 //!   fallback) and the runtime dispatch;
-//! * [`layout`]: the blocks of four tets (structure of arrays) derived from `Model::tets`;
+//! * [`layout`]: the blocks of four tets and of four hexes (structure of arrays) derived
+//!   from `Model::tets` and `Model::hexes`;
 //! * [`neo_hookean`]: the Neo-Hookean stress on lanes, mirroring bs-material;
 //! * [`tet_block`]: `F` of four tets from the padded displacements, nodal forces, inverted
 //!   lanes;
