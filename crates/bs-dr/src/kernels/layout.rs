@@ -2,7 +2,9 @@
 //! tets (hexes) `4b … 4b+3` form block `b`, one element per lane. Derived in `Model::new`
 //! from `Model::tets` and `Model::hexes`, which stay the reference (array-of-structures)
 //! data for every other reader. The last block is padded with inert lanes (zero gradients,
-//! volume and hourglass matrix, node 0: `F = I`, zero force), whose slots no node gathers.
+//! volume and hourglass matrix, the nodes of lane 0: `F = I`, zero force, and a T4ANP `J̄`
+//! that is lane 0's), whose slots no node gathers: a padded lane never reports an inversion
+//! of its own.
 
 use bs_material::{Elastic, Material};
 
@@ -64,8 +66,7 @@ fn block_law(mats: impl Iterator<Item = u32> + Clone, solids: &[Solid]) -> Block
     }
 }
 
-/// Builds the blocks of `hexes` (materials from `solids`). Padded lanes are inert (zero
-/// gradients, volume and hourglass matrix, node 0).
+/// Builds the blocks of `hexes` (materials from `solids`).
 pub(crate) fn hex_blocks(hexes: &[Hex], solids: &[Solid]) -> Vec<HexBlock> {
     hexes
         .chunks(LANES)
@@ -88,6 +89,11 @@ pub(crate) fn hex_blocks(hexes: &[Hex], solids: &[Solid]) -> Vec<HexBlock> {
                     }
                 }
                 b.vol[l] = h.vol;
+            }
+            for l in chunk.len()..LANES {
+                for a in 0..8 {
+                    b.nodes[a][l] = b.nodes[a][0];
+                }
             }
             b
         })
@@ -114,6 +120,11 @@ pub(crate) fn tet_blocks(tets: &[Tet], solids: &[Solid]) -> Vec<TetBlock> {
                     }
                 }
                 b.vol[l] = t.vol;
+            }
+            for l in chunk.len()..LANES {
+                for a in 0..4 {
+                    b.nodes[a][l] = b.nodes[a][0];
+                }
             }
             b.law = block_law(chunk.iter().map(|t| t.mat), solids);
             b
