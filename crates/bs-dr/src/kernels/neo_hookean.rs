@@ -65,6 +65,20 @@ pub(crate) fn det_from_cofactor<L: Lanes>(l: L, f: &Mat<L::V>, cof: &Mat<L::V>) 
     l.mul_add(f[0][0], cof[0][0], l.mul_add(f[0][1], cof[0][1], l.mul(f[0][2], cof[0][2])))
 }
 
+/// `det F` by the first-row expansion.
+#[inline(always)]
+pub(crate) fn det<L: Lanes>(l: L, f: &Mat<L::V>) -> L::V {
+    l.mul_add(
+        f[0][0],
+        cross2(l, f[1][1], f[2][2], f[1][2], f[2][1]),
+        l.mul_add(
+            f[0][1],
+            cross2(l, f[1][2], f[2][0], f[1][0], f[2][2]),
+            l.mul(f[0][2], cross2(l, f[1][0], f[2][1], f[1][1], f[2][0])),
+        ),
+    )
+}
+
 /// `F:F`.
 #[inline(always)]
 pub(crate) fn frobenius2<L: Lanes>(l: L, f: &Mat<L::V>) -> L::V {

@@ -14,7 +14,7 @@
 use bs_mesh::Vector3;
 
 use super::layout::{LANES, TetBlock};
-use super::neo_hookean::{NhLanes, cross2, inv_cbrt, pk1_coefficients};
+use super::neo_hookean::{NhLanes, det, inv_cbrt, pk1_coefficients};
 use super::reference;
 use super::simd::{BlockOp, Lanes};
 use super::tet_block::{
@@ -37,16 +37,7 @@ impl BlockOp for Jacobians<'_> {
     #[inline(always)]
     fn run<L: Lanes>(self, l: L) {
         for ((b, jac), vj) in self.blocks.iter().zip(self.jac.iter_mut()).zip(self.vj.iter_mut()) {
-            let f = deformation_gradient(l, self.upad, b);
-            let j = l.mul_add(
-                f[0][0],
-                cross2(l, f[1][1], f[2][2], f[1][2], f[2][1]),
-                l.mul_add(
-                    f[0][1],
-                    cross2(l, f[1][2], f[2][0], f[1][0], f[2][2]),
-                    l.mul(f[0][2], cross2(l, f[1][0], f[2][1], f[1][1], f[2][0])),
-                ),
-            );
+            let j = det(l, &deformation_gradient(l, self.upad, b));
             *jac = l.store(j);
             *vj = l.store(l.mul(l.load(b.vol), j));
         }
