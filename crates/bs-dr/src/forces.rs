@@ -1,5 +1,5 @@
-//! Internal forces: runs the element kernels of [`crate::kernels`] in parallel and assembles
-//! their results deterministically.
+//! Internal forces: runs the element kernels of the private `kernels` module in parallel
+//! and assembles their results deterministically.
 //!
 //! Every element writes its nodal forces into its own slots of a per-element buffer (in
 //! parallel, with rayon, over fixed runs of elements); then every node sums its slots in a

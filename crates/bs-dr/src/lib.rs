@@ -71,7 +71,6 @@ pub use dr::{DrParams, DynamicRelaxation};
 pub use forces::{Inversion, Workspace};
 #[doc(hidden)]
 pub use kernels::reference::ReferenceWorkspace;
-/// Whether the tet kernels run on AVX2/FMA lanes on this CPU (else the portable lanes).
 #[doc(hidden)]
 pub use kernels::simd::has_avx2_fma;
 pub use loads::{LoadError, Loads, ramp};

@@ -74,7 +74,7 @@ thread_local! {
     pub(crate) static FORCE_PORTABLE: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
 }
 
-/// Whether [`dispatch`] takes the AVX2/FMA path on this CPU.
+/// Whether the kernels run on AVX2/FMA lanes on this CPU (else on the portable lanes).
 pub fn has_avx2_fma() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
