@@ -3,8 +3,9 @@
 //!
 //! Every element writes its nodal forces into its own slots of a per-element buffer (in
 //! parallel, with rayon, over fixed runs of elements); then every node sums its slots in a
-//! fixed, increasing order (in parallel over nodes). No floating-point sum depends on the
-//! thread count, so results are bit-identical for 1 and N threads.
+//! fixed order (its slots in increasing order, even and odd positions in two partial sums;
+//! in parallel over nodes). No floating-point sum depends on the thread count, so results
+//! are bit-identical for 1 and N threads.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -32,7 +33,7 @@ const HEX_BLOCKS_PER_TASK: usize = 32;
 /// [`Model::workspace`] and reuse every step.
 #[derive(Debug, Clone)]
 pub struct Workspace {
-    /// Displacements padded to `[x, y, z, 0]` (one aligned load per node in the kernels).
+    /// Displacements padded to `[x, y, z, 0]` (one vector load per node in the kernels).
     upad: Vec<[f64; 4]>,
     /// Tet force slots, per block of four tets, tet-major: slot `4t + a` at `3(4t + a)` of
     /// the flattened buffer (see [`BlockForces`]).
