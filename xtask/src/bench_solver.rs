@@ -3,9 +3,11 @@
 //! Run in release (`cargo xtask bench solver` builds xtask in the dev profile, so this
 //! command re-invokes itself through `cargo run --release` unless `--no-rebuild` is given).
 //!
-//! 1. ns per element-step of `Model::internal_forces_into` for T4, T4ANP and H8 on meshes of
-//!    ≥ 50 000 elements (jittered structured cubes), in explicit rayon pools of 1 and 2
-//!    threads, with the 2-thread speed-up.
+//! 1. ns per element-step of `Model::internal_forces_into` (the SIMD kernels) and of the old
+//!    scalar kernels (`Model::internal_forces_scalar_into`, measured alternately in the same
+//!    run) for T4, T4ANP and H8 on meshes of ≥ 50 000 elements (jittered structured cubes),
+//!    in explicit rayon pools of 1 and 2 threads, with the new/old ratios and the 2-thread
+//!    speed-up.
 //! 2. DR steps and wall time against the Newton reference on a ~10 000-node T4 cube (bottom
 //!    clamped, top pushed down by 20% of the height), with their max nodal difference.
 //!
@@ -103,37 +105,63 @@ fn pool(threads: usize) -> rayon::ThreadPool {
     rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("thread pool")
 }
 
-/// Best-of-5 time per force evaluation (each sample long enough to be ≥ 0.2 s).
-fn time_forces(model: &Model, u: &[Vector3<f64>], threads: usize) -> Duration {
+/// Best-of-5 times per force evaluation of the SIMD kernels (`internal_forces_into`) and of
+/// the old scalar kernels (`internal_forces_scalar_into`), measured alternately in the same
+/// pool (each sample long enough to be ≥ 0.2 s), so that the ratio survives a noisy machine.
+fn time_forces(model: &Model, u: &[Vector3<f64>], threads: usize) -> (Duration, Duration) {
     pool(threads).install(|| {
         let mut ws = model.workspace();
+        let mut rws = model.reference_workspace();
         let mut f = vec![Vector3::zeros(); model.node_count()];
-        model.internal_forces_into(u, &mut ws, &mut f).expect("no inversion");
+        let mut new = || model.internal_forces_into(u, &mut ws, &mut f).expect("no inversion");
+        let mut g = vec![Vector3::zeros(); model.node_count()];
+        let mut old =
+            || model.internal_forces_scalar_into(u, &mut rws, &mut g).expect("no inversion");
+        new();
+        old();
         let t = Instant::now();
-        model.internal_forces_into(u, &mut ws, &mut f).expect("no inversion");
+        old();
         let once = t.elapsed().as_secs_f64().max(1e-6);
         let reps = ((0.2 / once).ceil() as usize).max(3);
-        let mut best = Duration::MAX;
+        let (mut best_new, mut best_old) = (Duration::MAX, Duration::MAX);
         for _ in 0..5 {
             let t = Instant::now();
             for _ in 0..reps {
-                model.internal_forces_into(u, &mut ws, &mut f).expect("no inversion");
+                old();
             }
-            best = best.min(t.elapsed() / reps as u32);
+            best_old = best_old.min(t.elapsed() / reps as u32);
+            let t = Instant::now();
+            for _ in 0..4 * reps {
+                new();
+            }
+            best_new = best_new.min(t.elapsed() / (4 * reps) as u32);
         }
-        std::hint::black_box(&f);
-        best
+        (best_new, best_old)
     })
 }
 
 /// Runs the benchmark and prints the table.
 pub fn run() -> Result<(), String> {
     println!("brainshift solver benchmark (Neo-Hookean E = 3000, nu = 0.49; best of 5)");
-    println!("NOTE: shared 2-core machine, numbers are noisy.\n");
+    println!("NOTE: shared 2-core machine, numbers are noisy; compare the ratios.");
     println!(
-        "{:<7} {:>9} {:>9} {:>12} {:>12} {:>9}",
-        "kernel", "elements", "nodes", "1 thr ns/el", "2 thr ns/el", "speed-up"
+        "new = SIMD kernels ({} lanes), old = scalar kernels, both measured in this run.\n",
+        if bs_dr::has_avx2_fma() { "AVX2/FMA" } else { "portable" }
     );
+    println!(
+        "{:<7} {:>7} {:>7} | {:>8} {:>8} {:>6} | {:>8} {:>8} {:>6} | {:>7}",
+        "kernel",
+        "elems",
+        "nodes",
+        "old 1t",
+        "new 1t",
+        "ratio",
+        "old 2t",
+        "new 2t",
+        "ratio",
+        "new 2/1"
+    );
+    println!("{:<23} | {:^24} | {:^24} |", "", "ns per element-step", "ns per element-step");
     let nt4: usize = std::env::var("BS_BENCH_N").ok().and_then(|s| s.parse().ok()).unwrap_or(21);
     let t4_mesh = cube(nt4, true); // 55 566 tets, 10 648 nodes
     let h8_mesh = cube(37, false); // 50 653 hexes
@@ -149,16 +177,22 @@ pub fn run() -> Result<(), String> {
             .map(|p| Vector3::new(0.02 * (3.0 * p.z).sin(), 0.01 * p.x * p.y, -0.03 * p.z * p.z))
             .collect();
         let ne = mesh.elements.len() as f64;
-        let t1 = time_forces(&m, &u, 1).as_secs_f64() * 1e9 / ne;
-        let t2 = time_forces(&m, &u, 2).as_secs_f64() * 1e9 / ne;
+        let ns = |d: Duration| d.as_secs_f64() * 1e9 / ne;
+        let (n1, o1) = time_forces(&m, &u, 1);
+        let (n2, o2) = time_forces(&m, &u, 2);
+        let (n1, o1, n2, o2) = (ns(n1), ns(o1), ns(n2), ns(o2));
         println!(
-            "{:<7} {:>9} {:>9} {:>12.1} {:>12.1} {:>8.2}x",
+            "{:<7} {:>7} {:>7} | {:>8.1} {:>8.1} {:>5.2}x | {:>8.1} {:>8.1} {:>5.2}x | {:>6.2}x",
             name,
             mesh.elements.len(),
             mesh.nodes.len(),
-            t1,
-            t2,
-            t1 / t2
+            o1,
+            n1,
+            o1 / n1,
+            o2,
+            n2,
+            o2 / n2,
+            n1 / n2
         );
     }
 

@@ -1,30 +1,52 @@
-//! TLED internal-force kernels (T4, T4ANP, H8 mean strain + hourglass) and their
-//! deterministic parallel assembly.
+//! Internal forces: runs the element kernels of the private `kernels` module in parallel
+//! and assembles their results deterministically.
 //!
 //! Every element writes its nodal forces into its own slots of a per-element buffer (in
-//! parallel, with rayon); then every node sums its slots in a fixed, increasing order (in
-//! parallel over nodes). No floating-point sum depends on the thread count, so results are
-//! bit-identical for 1 and N threads.
+//! parallel, with rayon, over fixed runs of elements); then every node sums its slots in a
+//! fixed order (its slots in increasing order, even and odd positions in two partial sums;
+//! in parallel over nodes). No floating-point sum depends on the thread count, so results
+//! are bit-identical for 1 and N threads.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use bs_mesh::Vector3;
-use nalgebra::Matrix3;
-
 use rayon::prelude::*;
 
+use crate::kernels::h8::{H8Forces, HexBlockForces};
+use crate::kernels::layout::LANES;
+use crate::kernels::simd::{BlockOp, Lanes, dispatch};
+use crate::kernels::t4::T4Forces;
+use crate::kernels::t4anp::{AnpForces, Jacobians, nodal_ratio};
+use crate::kernels::tet_block::BlockForces;
 use crate::model::{Model, TetFormulation};
 
 /// Minimum number of elements (or nodes) per rayon task.
-const MIN_LEN: usize = 512;
+pub(crate) const MIN_LEN: usize = 512;
+
+/// Tet blocks per rayon task (a fixed partition: results do not depend on it).
+const BLOCKS_PER_TASK: usize = 64;
+
+/// Hex blocks per rayon task.
+const HEX_BLOCKS_PER_TASK: usize = 32;
 
 /// Caller-owned scratch buffers for [`Model::internal_forces_into`]; allocate once with
 /// [`Model::workspace`] and reuse every step.
 #[derive(Debug, Clone)]
 pub struct Workspace {
-    slots: Vec<Vector3<f64>>,
-    /// Per-element `J` (tets, then hexes).
-    jac: Vec<f64>,
+    /// Displacements padded to `[x, y, z, 0]` (one vector load per node in the kernels).
+    upad: Vec<[f64; 4]>,
+    /// Tet force slots, per block of four tets, tet-major: slot `4t + a` at `3(4t + a)` of
+    /// the flattened buffer (see [`BlockForces`]).
+    tslots: Vec<BlockForces>,
+    /// Hex force slots, per block of four hexes, hex-major: hex slot `8h + a` at
+    /// `3(8h + a)` of the flattened buffer (see [`HexBlockForces`]).
+    hslots: Vec<HexBlockForces>,
+    /// Tet `J`, blocked.
+    tjac: Vec<[f64; LANES]>,
+    /// Tet `V J` (T4ANP), blocked.
+    tvj: Vec<[f64; LANES]>,
+    /// Hex `J`, blocked.
+    hjac: Vec<[f64; LANES]>,
     /// ANP nodal volume ratios.
     jnodal: Vec<f64>,
 }
@@ -40,52 +62,18 @@ pub struct Inversion {
     pub jacobian: f64,
 }
 
-/// `F = I + Σ_a u_a ⊗ g_a` (row i = displacement component, column j = reference direction).
-#[inline(always)]
-fn deformation_gradient<const N: usize>(
-    u: &[Vector3<f64>],
-    nodes: &[u32; N],
-    g: &[[f64; 3]; N],
-) -> Matrix3<f64> {
-    let mut f = Matrix3::identity();
-    for a in 0..N {
-        let ua = &u[nodes[a] as usize];
-        for j in 0..3 {
-            for i in 0..3 {
-                f[(i, j)] += ua[i] * g[a][j];
-            }
-        }
-    }
-    f
-}
-
-#[inline(always)]
-fn det3(f: &Matrix3<f64>) -> f64 {
-    f[(0, 0)] * (f[(1, 1)] * f[(2, 2)] - f[(1, 2)] * f[(2, 1)])
-        - f[(0, 1)] * (f[(1, 0)] * f[(2, 2)] - f[(1, 2)] * f[(2, 0)])
-        + f[(0, 2)] * (f[(1, 0)] * f[(2, 1)] - f[(1, 1)] * f[(2, 0)])
-}
-
-/// `out_a = scale · P g_a` for every node (`P` the first Piola–Kirchhoff stress).
-#[inline(always)]
-fn nodal_forces<const N: usize>(
-    p: &Matrix3<f64>,
-    scale: f64,
-    g: &[[f64; 3]; N],
-    out: &mut [Vector3<f64>],
-) {
-    let p = p * scale;
-    for a in 0..N {
-        out[a] = p * Vector3::from(g[a]);
-    }
-}
-
 impl Model {
     /// Scratch buffers sized for this model.
     pub fn workspace(&self) -> Workspace {
+        let nb = self.tet_blocks.len();
         Workspace {
-            slots: vec![Vector3::zeros(); self.slot_count()],
-            jac: vec![0.0; self.tets.len() + self.hexes.len()],
+            upad: vec![[0.0; 4]; self.node_count()],
+            // One spare block and slot: the gather reads every slot as four values.
+            tslots: vec![[[0.0; LANES]; 12]; nb + 1],
+            hslots: vec![[[0.0; LANES]; 24]; self.hex_blocks.len() + 1],
+            tjac: vec![[0.0; LANES]; nb],
+            tvj: vec![[0.0; LANES]; nb],
+            hjac: vec![[0.0; LANES]; self.hex_blocks.len()],
             jnodal: vec![0.0; self.node_count()],
         }
     }
@@ -107,145 +95,186 @@ impl Model {
         assert_eq!(forces.len(), self.node_count(), "force length must equal the node count");
         let nt = self.tets.len();
         let bad = AtomicBool::new(false);
-        let (tslots, hslots) = ws.slots.split_at_mut(4 * nt);
-        let (tjac, hjac) = ws.jac.split_at_mut(nt);
+        let flag = |b: bool| {
+            if b {
+                bad.store(true, Ordering::Relaxed);
+            }
+        };
+        ws.upad
+            .par_iter_mut()
+            .zip(u.par_iter())
+            .with_min_len(4 * MIN_LEN)
+            .for_each(|(p, v)| *p = [v.x, v.y, v.z, 0.0]);
+        let upad: &[[f64; 4]] = &ws.upad;
+        let tets_of = |task: usize, len: usize| {
+            let lo = (task * BLOCKS_PER_TASK * LANES).min(nt);
+            &self.tets[lo..(lo + len * LANES).min(nt)]
+        };
         match self.options.tet {
             TetFormulation::T4 => {
-                tslots
-                    .par_chunks_mut(4)
-                    .zip(tjac.par_iter_mut())
-                    .zip(self.tets.par_iter())
-                    .with_min_len(MIN_LEN)
-                    .for_each(|((out, jac), t)| {
-                        let f = deformation_gradient(u, &t.nodes, &t.g);
-                        let j = det3(&f);
-                        *jac = j;
-                        if !(j > 0.0 && j.is_finite()) {
-                            bad.store(true, Ordering::Relaxed);
-                            out.iter_mut().for_each(|o| *o = Vector3::zeros());
-                            return;
-                        }
-                        let p = self.solids[t.mat as usize].material.pk1_fj(&f, j);
-                        nodal_forces(&p, t.vol, &t.g, out);
+                self.tet_blocks
+                    .par_chunks(BLOCKS_PER_TASK)
+                    .zip(ws.tslots.par_chunks_mut(BLOCKS_PER_TASK))
+                    .zip(ws.tjac.par_chunks_mut(BLOCKS_PER_TASK))
+                    .enumerate()
+                    .for_each(|(task, ((blocks, out), jac))| {
+                        flag(dispatch(T4Forces {
+                            blocks,
+                            tets: tets_of(task, blocks.len()),
+                            solids: &self.solids,
+                            u,
+                            upad,
+                            out,
+                            jac,
+                        }))
                     });
             }
             TetFormulation::T4Anp => {
-                // Pass 1: element volume ratios.
-                tjac.par_iter_mut().zip(self.tets.par_iter()).with_min_len(MIN_LEN).for_each(
-                    |(jac, t)| {
-                        let f = deformation_gradient(u, &t.nodes, &t.g);
-                        *jac = det3(&f);
-                    },
-                );
+                // Pass 1: J and V J.
+                self.tet_blocks
+                    .par_chunks(BLOCKS_PER_TASK)
+                    .zip(ws.tjac.par_chunks_mut(BLOCKS_PER_TASK))
+                    .zip(ws.tvj.par_chunks_mut(BLOCKS_PER_TASK))
+                    .for_each(|((blocks, jac), vj)| dispatch(Jacobians { blocks, upad, jac, vj }));
                 // Pass 2: nodal volume-weighted averages (fixed order per node).
-                let tjac_ro: &[f64] = tjac;
-                let tets = &self.tets;
+                let tvj: &[[f64; LANES]] = &ws.tvj;
                 ws.jnodal.par_iter_mut().enumerate().with_min_len(MIN_LEN).for_each(|(n, jn)| {
-                    let mut acc = 0.0;
                     let lo = self.gather_ptr[n] as usize;
-                    let hi = self.gather_ptr[n + 1] as usize;
-                    for &s in &self.gather_slot[lo..hi] {
-                        let s = s as usize;
-                        if s < 4 * nt {
-                            let e = s / 4;
-                            acc += tets[e].vol * tjac_ro[e];
-                        }
-                    }
-                    *jn = acc * self.anp_inv_vol[n];
+                    let slots = &self.gather_slot[lo..lo + self.gather_tets[n] as usize];
+                    *jn = nodal_ratio(slots, tvj, self.anp_inv_vol[n]);
                 });
-                // Pass 3: stress from F̄ = (J̄/J)^(1/3) F, forces f_a = V (J/J̄)^(1/3) F S̄ g_a
-                // (= ∫ σ̄ ∇ₓN_a dv over the current element volume).
-                let jnodal: &[f64] = &ws.jnodal;
-                tslots
-                    .par_chunks_mut(4)
-                    .zip(tjac_ro.par_iter())
-                    .zip(self.tets.par_iter())
-                    .with_min_len(MIN_LEN)
-                    .for_each(|((out, &j), t)| {
-                        let jbar = 0.25
-                            * (jnodal[t.nodes[0] as usize]
-                                + jnodal[t.nodes[1] as usize]
-                                + jnodal[t.nodes[2] as usize]
-                                + jnodal[t.nodes[3] as usize]);
-                        if !(j > 0.0 && j.is_finite() && jbar > 0.0 && jbar.is_finite()) {
-                            bad.store(true, Ordering::Relaxed);
-                            out.iter_mut().for_each(|o| *o = Vector3::zeros());
-                            return;
-                        }
-                        let f = deformation_gradient(u, &t.nodes, &t.g);
-                        let r = bs_material::inv_cbrt(j / jbar); // (J̄/J)^(1/3)
-                        // P̄ = P(F̄ = r F, J̄); f_a = V r⁻¹ F S̄ g_a = V r⁻² P̄ g_a.
-                        let p = self.solids[t.mat as usize].material.pk1_fj(&(f * r), jbar);
-                        nodal_forces(&p, t.vol / (r * r), &t.g, out);
+                // Pass 3: J̄ and the forces.
+                let (jnodal, tjac): (&[f64], &[[f64; LANES]]) = (&ws.jnodal, &ws.tjac);
+                self.tet_blocks
+                    .par_chunks(BLOCKS_PER_TASK)
+                    .zip(ws.tslots.par_chunks_mut(BLOCKS_PER_TASK))
+                    .zip(tjac.par_chunks(BLOCKS_PER_TASK))
+                    .enumerate()
+                    .for_each(|(task, ((blocks, out), jac))| {
+                        flag(dispatch(AnpForces {
+                            blocks,
+                            tets: tets_of(task, blocks.len()),
+                            solids: &self.solids,
+                            u,
+                            upad,
+                            jac,
+                            jnodal,
+                            out,
+                        }))
                     });
             }
         }
-        hslots
-            .par_chunks_mut(8)
-            .zip(hjac.par_iter_mut())
-            .zip(self.hexes.par_iter())
-            .with_min_len(MIN_LEN / 4)
-            .for_each(|((out, jac), h)| {
-                let f = deformation_gradient(u, &h.nodes, &h.g);
-                let j = det3(&f);
-                *jac = j;
-                if !(j > 0.0 && j.is_finite()) {
-                    bad.store(true, Ordering::Relaxed);
-                    out.iter_mut().for_each(|o| *o = Vector3::zeros());
-                    return;
-                }
-                let p = self.solids[h.mat as usize].material.pk1_fj(&f, j);
-                nodal_forces(&p, h.vol, &h.g, out);
-                // Hourglass forces K_hg u (per component).
-                for a in 0..8 {
-                    let mut acc = Vector3::zeros();
-                    for b in 0..8 {
-                        acc += u[h.nodes[b] as usize] * h.hg[a][b];
-                    }
-                    out[a] += acc;
-                }
+        let nh = self.hexes.len();
+        self.hex_blocks
+            .par_chunks(HEX_BLOCKS_PER_TASK)
+            .zip(ws.hslots.par_chunks_mut(HEX_BLOCKS_PER_TASK))
+            .zip(ws.hjac.par_chunks_mut(HEX_BLOCKS_PER_TASK))
+            .enumerate()
+            .for_each(|(task, ((blocks, out), jac))| {
+                let lo = (task * HEX_BLOCKS_PER_TASK * LANES).min(nh);
+                let hexes = &self.hexes[lo..(lo + blocks.len() * LANES).min(nh)];
+                let solids = &self.solids;
+                flag(dispatch(H8Forces { blocks, hexes, solids, u, upad, out, jac }))
             });
-        // Gather per node in slot order.
-        let slots: &[Vector3<f64>] = &ws.slots;
-        forces.par_iter_mut().enumerate().with_min_len(MIN_LEN).for_each(|(n, fo)| {
-            let lo = self.gather_ptr[n] as usize;
-            let hi = self.gather_ptr[n + 1] as usize;
-            let mut acc = Vector3::zeros();
-            for &s in &self.gather_slot[lo..hi] {
-                acc += slots[s as usize];
-            }
-            *fo = acc;
+        // Gather per node in slot order: tet slots, then hex slots.
+        let tslots = ws.tslots.as_flattened().as_flattened();
+        let hslots = ws.hslots.as_flattened().as_flattened();
+        forces.par_chunks_mut(MIN_LEN).enumerate().for_each(|(chunk, forces)| {
+            dispatch(Gather { model: self, first: chunk * MIN_LEN, tslots, hslots, forces })
         });
         if bad.load(Ordering::Relaxed) {
-            return Err(self.first_inversion(&ws.jac, &ws.jnodal));
+            let (tjac, hjac) = (ws.tjac.as_flattened(), ws.hjac.as_flattened());
+            return Err(self.first_inversion(|t| tjac[t], &hjac[..nh], &ws.jnodal));
         }
         Ok(())
     }
 
-    fn first_inversion(&self, jac: &[f64], jnodal: &[f64]) -> Inversion {
-        let nt = self.tets.len();
+    /// The lowest-indexed element (mesh order) whose `J` (or, for T4ANP tets with a valid
+    /// `J`, whose `J̄`) is not > 0 and finite. `tjac(t)` is the `J` of tet `t`.
+    pub(crate) fn first_inversion(
+        &self,
+        tjac: impl Fn(usize) -> f64,
+        hjac: &[f64],
+        jnodal: &[f64],
+    ) -> Inversion {
         let mut best: Option<Inversion> = None;
-        for (k, &j) in jac.iter().enumerate() {
-            let (e, jj) = if k < nt {
-                let t = &self.tets[k];
-                let jbar = if self.options.tet == TetFormulation::T4Anp {
-                    0.25 * t.nodes.iter().map(|&n| jnodal[n as usize]).sum::<f64>()
-                } else {
-                    j
-                };
-                (self.tet_element(k), if j > 0.0 && j.is_finite() { jbar } else { j })
-            } else {
-                (self.hex_element(k - nt), j)
-            };
+        let mut consider = |e: usize, jj: f64| {
             if !(jj > 0.0 && jj.is_finite()) && best.is_none_or(|b| e < b.element) {
                 best =
                     Some(Inversion { element: e, element_id: self.element_ids[e], jacobian: jj });
             }
+        };
+        for (k, t) in self.tets.iter().enumerate() {
+            let j = tjac(k);
+            let jbar = if self.options.tet == TetFormulation::T4Anp {
+                0.25 * t.nodes.iter().map(|&n| jnodal[n as usize]).sum::<f64>()
+            } else {
+                j
+            };
+            consider(self.tet_element(k), if j > 0.0 && j.is_finite() { jbar } else { j });
+        }
+        for (k, &j) in hjac.iter().enumerate() {
+            consider(self.hex_element(k), j);
         }
         best.unwrap_or(Inversion {
             element: 0,
             element_id: self.element_ids[0],
             jacobian: f64::NAN,
         })
+    }
+}
+
+/// The gather of a run of nodes starting at `first`: each node's slots in `gather_slot`
+/// order, tet slots then hex slots, every slot read as one vector of four (x, y, z and
+/// the next value, ignored), summed in two interleaved partial sums (even and odd
+/// positions; two independent add chains) added at the end. The order is fixed, so the
+/// result does not depend on the thread count.
+struct Gather<'a> {
+    model: &'a Model,
+    first: usize,
+    /// Flattened tet slots: slot `s` at `3s`.
+    tslots: &'a [f64],
+    /// Flattened hex slots: hex slot `h` at `3h`.
+    hslots: &'a [f64],
+    forces: &'a mut [Vector3<f64>],
+}
+
+/// Four values of `buf` from `3 i`.
+#[inline(always)]
+fn slot4(buf: &[f64], i: usize) -> [f64; 4] {
+    buf[3 * i..3 * i + 4].try_into().expect("slot in range")
+}
+
+impl BlockOp for Gather<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<L: Lanes>(self, l: L) {
+        let m = self.model;
+        let nt4 = 4 * m.tets.len();
+        for (k, fo) in self.forces.iter_mut().enumerate() {
+            let n = self.first + k;
+            let slots = &m.gather_slot[m.gather_ptr[n] as usize..m.gather_ptr[n + 1] as usize];
+            let (ts, hs) = slots.split_at(m.gather_tets[n] as usize);
+            let (mut even, mut odd) = (l.splat(0.0), l.splat(0.0));
+            let mut pairs = ts.chunks_exact(2);
+            for p in &mut pairs {
+                even = l.add(even, l.load(slot4(self.tslots, p[0] as usize)));
+                odd = l.add(odd, l.load(slot4(self.tslots, p[1] as usize)));
+            }
+            if let [s] = pairs.remainder() {
+                even = l.add(even, l.load(slot4(self.tslots, *s as usize)));
+            }
+            let mut pairs = hs.chunks_exact(2);
+            for p in &mut pairs {
+                even = l.add(even, l.load(slot4(self.hslots, p[0] as usize - nt4)));
+                odd = l.add(odd, l.load(slot4(self.hslots, p[1] as usize - nt4)));
+            }
+            if let [s] = pairs.remainder() {
+                even = l.add(even, l.load(slot4(self.hslots, *s as usize - nt4)));
+            }
+            let v = l.store(l.add(even, odd));
+            *fo = Vector3::new(v[0], v[1], v[2]);
+        }
     }
 }

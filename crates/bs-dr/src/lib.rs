@@ -1,5 +1,7 @@
-//! Total Lagrangian explicit dynamics (TLED) element kernels and the adaptive Dynamic
-//! Relaxation solver, with a static Newton–Raphson reference solver behind the same trait.
+//! Total Lagrangian explicit dynamics (TLED) element kernels and three steady-state solvers
+//! behind one trait: the semismooth Newton–Krylov solver (the default: two-level
+//! preconditioner, kinematic contact linearised on its active set), the paper's adaptive
+//! Dynamic Relaxation, and a static Newton–Raphson reference with a direct factorisation.
 //!
 //! Architecture invariant: this crate knows elements, materials and nodal vectors. It knows
 //! nothing of contact geometry (buckets, triangles, closest points): the contact reaches the
@@ -14,9 +16,12 @@
 //!    strain with stiffness hourglass control).
 //! 2. Describe the boundary conditions with [`Loads`]: fixed components and prescribed final
 //!    displacements per node and component; everything else is traction-free.
-//! 3. Pick a [`Solver`]: [`DynamicRelaxation`] (explicit, any element, kinematic contact) or
-//!    [`Newton`] (implicit reference; T4 and H8, no contact), and call
-//!    [`Solver::solve`] with a [`Contact`] handler ([`NoContact`] if none) and an observer.
+//! 3. Pick a [`Solver`]: [`NewtonKrylov`] (any element, kinematic contact through
+//!    [`Contact::project`]; [`NewtonKrylov::prepare`] does the load-independent part once),
+//!    [`DynamicRelaxation`] (explicit, any element, kinematic contact through
+//!    [`Contact::enforce`]) or [`Newton`] (implicit reference; T4 and H8, no contact), and
+//!    call [`Solver::solve`] with a [`Contact`] handler ([`NoContact`] if none) and an
+//!    observer.
 //!
 //! ```
 //! use bs_dr::{DynamicRelaxation, DrParams, Loads, Model, ModelOptions, NoContact, Solid, Solver};
@@ -47,17 +52,24 @@
 //!   unstable step, unbounded growth, step budget with the error reached).
 //! * Internal forces are bit-identical for any rayon thread count; the step loop allocates
 //!   nothing (buffers are allocated once per solve).
-//! * Newton supports T4 and H8 (not T4ANP, not contact) and exists to check DR.
+//! * Newton–Krylov stops when its last correction is below [`NewtonKrylovParams::tolerance`]
+//!   × load scale with the prescribed displacement applied and its contact active set
+//!   settled; its solves are bit-identical for any thread count (deterministic reductions).
+//! * Newton supports T4 and H8 (not T4ANP, not contact) and exists to check the others.
 //!
-//! Modules: [`model`] (precomputation), [`forces`] (kernels and deterministic parallel
-//! assembly), [`loads`], [`contact`] (the seam), [`solver`] (trait, report, errors),
-//! [`dr`], [`newton`].
+//! Modules: [`model`] (precomputation), [`forces`] (deterministic parallel assembly of the
+//! element kernels, which live in the private `kernels` module: SIMD across blocks of four
+//! tets with runtime dispatch, H8, and the scalar reference), [`loads`], [`contact`] (the
+//! seam), [`solver`] (trait, report, errors), [`dr`], [`newton`]; for Newton–Krylov
+//! [`stiffness`] (`K₀`), [`sparse`] (nodal sparse kernels), [`twolevel`] (the
+//! preconditioner), [`krylov`] (GMRES) and [`newton_krylov`].
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the tensor formulas
 
 pub mod contact;
 pub mod dr;
 pub mod forces;
+mod kernels;
 pub mod krylov;
 pub mod loads;
 pub mod model;
@@ -72,6 +84,10 @@ pub mod twolevel;
 pub use contact::{Contact, ContactProjection, ContactReport, NoContact, SurfaceFeature};
 pub use dr::{DrParams, DynamicRelaxation};
 pub use forces::{Inversion, Workspace};
+#[doc(hidden)]
+pub use kernels::reference::ReferenceWorkspace;
+#[doc(hidden)]
+pub use kernels::simd::has_avx2_fma;
 pub use loads::{LoadError, Loads, ramp};
 pub use model::{Model, ModelError, ModelOptions, Solid, TetFormulation};
 pub use newton::{Newton, NewtonParams};

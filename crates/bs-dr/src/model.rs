@@ -6,6 +6,8 @@ use bs_material::{Elastic, Material, Tangent};
 use bs_mesh::{ElementKind, Mesh, Point3};
 use nalgebra::{SMatrix, SymmetricEigen};
 
+use crate::kernels::layout::{HexBlock, TetBlock, hex_blocks, tet_blocks, tet_slot_counts};
+
 /// Formulation used for linear tetrahedra.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum TetFormulation {
@@ -176,6 +178,13 @@ pub struct Model {
     pub(crate) gather_slot: Vec<u32>,
     /// ANP: 1 / Σ_{tets ∋ n} V_e per node (0 for nodes without tets).
     pub(crate) anp_inv_vol: Vec<f64>,
+    /// `tets` in blocks of four (structure of arrays) for the SIMD kernels; derived from
+    /// `tets` and `solids`, padded at the end.
+    pub(crate) tet_blocks: Vec<TetBlock>,
+    /// `hexes` in blocks of four for the SIMD kernel (derived, padded at the end).
+    pub(crate) hex_blocks: Vec<HexBlock>,
+    /// Number of tet slots (the first ones) of every node in `gather_slot` (derived).
+    pub(crate) gather_tets: Vec<u32>,
 }
 
 /// Gauss points of the 2×2×2 rule (exact for the mean gradients of a trilinear hex).
@@ -491,6 +500,9 @@ impl Model {
             }
         }
         let anp_inv_vol = anp_vol.iter().map(|&v| if v > 0.0 { 1.0 / v } else { 0.0 }).collect();
+        let tet_blocks = tet_blocks(&tets, solids);
+        let hex_blocks = hex_blocks(&hexes, solids);
+        let gather_tets = tet_slot_counts(&gather_ptr, &gather_slot, tets.len());
         Ok(Model {
             reference: mesh.nodes.clone(),
             node_ids: if mesh.node_ids.len() == nn {
@@ -509,6 +521,9 @@ impl Model {
             gather_ptr,
             gather_slot,
             anp_inv_vol,
+            tet_blocks,
+            hex_blocks,
+            gather_tets,
         })
     }
 

@@ -30,7 +30,7 @@
 //! component of the natural residual (in length units) accepts a step only if it decreases
 //! the residual; a step that inverts an element is halved. The linear solves are inexact
 //! (Eisenstat–Walker forcing between [`NewtonKrylovParams::forcing_min`] and
-//! [`NewtonKrylovParams::forcing_max`]). The iteration stops when the last correction
+//! [`NewtonKrylovParams::forcing_max`], never tighter than the tolerance needs). The iteration stops when the last correction
 //! `max|Δu|` is below the tolerance with the prescribed displacement fully applied and the
 //! active set and features unchanged: with the iteration converging superlinearly the error
 //! of the answer is a fraction of that last correction, which is reported as the error
@@ -634,8 +634,12 @@ impl NewtonKrylov {
             }
             let phi_prev = if phi.is_finite() { phi } else { accepted_phi };
             phi = accepted_phi;
-            // Eisenstat–Walker (choice 2) forcing for the next linear solve.
-            eta = (0.9 * (phi / phi_prev).powi(2)).clamp(p.forcing_min, p.forcing_max);
+            // Eisenstat–Walker (choice 2) forcing for the next linear solve, but no tighter
+            // than the tolerance needs: a correction of about `err` solved to a relative
+            // residual 0.1 tol/err errs by about a tenth of the tolerance.
+            let ew = 0.9 * (phi / phi_prev).powi(2);
+            let enough = if err > 0.0 { 0.1 * tol / err } else { 0.0 };
+            eta = ew.max(enough).clamp(p.forcing_min, p.forcing_max);
 
             // 4. Guards and progress.
             let maxu = u.iter().fold(0.0f64, |m, v| m.max(v.norm()));

@@ -798,20 +798,6 @@ impl TwoLevel {
     pub fn sizes(&self) -> (usize, usize, usize) {
         (self.pt.rows(), self.coarse.values.len(), self.p.val.len())
     }
-
-    #[doc(hidden)]
-    /// Times of the parts of one cycle (coarse correction alone), for profiling.
-    pub fn time_coarse(
-        &self,
-        con: &Constraints,
-        b: &[Vector3<f64>],
-        s: &mut TwoLevelScratch,
-    ) -> std::time::Duration {
-        let t = std::time::Instant::now();
-        let TwoLevelScratch { e, coarse, mem, .. } = s;
-        self.coarse_correct(&con.projector, b, e, coarse, mem);
-        t.elapsed()
-    }
 }
 
 #[cfg(test)]
