@@ -58,6 +58,9 @@ fn newton_krylov_params(s: &SolveSettings, load_scale: f64) -> NewtonKrylov {
         tolerance: s.tolerance / load_scale,
         max_iterations: s.max_steps.unwrap_or(defaults.max_iterations),
         forcing_max: s.forcing_max.unwrap_or(defaults.forcing_max),
+        forcing_active_set: s
+            .forcing_max
+            .map_or(defaults.forcing_active_set, |f| defaults.forcing_active_set.max(f)),
         forcing_min: s.forcing_max.map_or(defaults.forcing_min, |f| defaults.forcing_min.min(f)),
         ..defaults
     })

@@ -7,7 +7,7 @@
 use bs_mesh::Vector3;
 use rayon::prelude::*;
 
-use crate::sparse::{dot, norm};
+use crate::sparse::norm;
 
 /// A linear map on nodal vectors (`out = A v`), as the solvers pass operators around.
 pub type NodalMap<'a> = dyn FnMut(&[Vector3<f64>], &mut [Vector3<f64>]) + 'a;
@@ -85,17 +85,16 @@ impl Gmres {
                 prec(&self.v[k], &mut self.z[k]);
                 op(&self.z[k], &mut self.w);
                 total += 1;
+                // Classical Gram–Schmidt twice (CGS2): as stable as modified Gram–Schmidt,
+                // with all inner products of a sweep in one pass over the vectors.
+                let basis = &self.v[..=k];
+                let h1 = multi_dot(basis, &self.w);
+                subtract(basis, &h1, &mut self.w);
+                let h2 = multi_dot(basis, &self.w);
+                let hn = subtract(basis, &h2, &mut self.w).sqrt();
                 for j in 0..=k {
-                    let hj = dot(&self.w, &self.v[j]);
-                    self.h[j][k] = hj;
-                    let vj = &self.v[j];
-                    self.w
-                        .par_iter_mut()
-                        .zip(vj.par_iter())
-                        .with_min_len(2048)
-                        .for_each(|(a, b)| *a -= b * hj);
+                    self.h[j][k] = h1[j] + h2[j];
                 }
-                let hn = norm(&self.w);
                 self.h[k + 1][k] = hn;
                 for j in 0..k {
                     let t = self.cs[j] * self.h[j][k] + self.sn[j] * self.h[j + 1][k];
@@ -135,13 +134,12 @@ impl Gmres {
                 }
                 y[i] = s / self.h[i][i];
             }
-            for (j, &yj) in y.iter().enumerate() {
-                let zj = &self.z[j];
-                x.par_iter_mut()
-                    .zip(zj.par_iter())
-                    .with_min_len(2048)
-                    .for_each(|(a, b)| *a += b * yj);
-            }
+            let z = &self.z[..k];
+            x.par_iter_mut().enumerate().with_min_len(CHUNK).for_each(|(i, a)| {
+                for (zj, &yj) in z.iter().zip(&y) {
+                    *a += zj[i] * yj;
+                }
+            });
             let estimate = self.g[k].abs() / bn;
             if estimate <= rtol || total >= max_iterations || breakdown {
                 return GmresInfo {
@@ -168,6 +166,56 @@ impl Gmres {
             }
         }
     }
+}
+
+/// Nodes per chunk of the fused passes (fixed: the sums do not depend on the thread count).
+const CHUNK: usize = 2048;
+
+/// `Vᵀ w` for the vectors `v`, in one pass: per chunk the partial products of every vector,
+/// then the chunks summed in order.
+fn multi_dot(v: &[Vec<Vector3<f64>>], w: &[Vector3<f64>]) -> Vec<f64> {
+    let m = v.len();
+    let partial: Vec<Vec<f64>> = w
+        .par_chunks(CHUNK)
+        .enumerate()
+        .map(|(c, wc)| {
+            let start = c * CHUNK;
+            let mut acc = vec![0.0; m];
+            for (i, wi) in wc.iter().enumerate() {
+                for (a, vj) in acc.iter_mut().zip(v) {
+                    *a += vj[start + i].dot(wi);
+                }
+            }
+            acc
+        })
+        .collect();
+    let mut out = vec![0.0; m];
+    for p in &partial {
+        for (o, x) in out.iter_mut().zip(p) {
+            *o += x;
+        }
+    }
+    out
+}
+
+/// `w −= V h` in one pass; returns `‖w‖²` after the update (chunks summed in order).
+fn subtract(v: &[Vec<Vector3<f64>>], h: &[f64], w: &mut [Vector3<f64>]) -> f64 {
+    let partial: Vec<f64> = w
+        .par_chunks_mut(CHUNK)
+        .enumerate()
+        .map(|(c, wc)| {
+            let start = c * CHUNK;
+            let mut n2 = 0.0;
+            for (i, wi) in wc.iter_mut().enumerate() {
+                for (vj, &hj) in v.iter().zip(h) {
+                    *wi -= vj[start + i] * hj;
+                }
+                n2 += wi.norm_squared();
+            }
+            n2
+        })
+        .collect();
+    partial.iter().sum()
 }
 
 #[cfg(test)]

@@ -68,6 +68,9 @@ pub struct NewtonKrylovParams {
     pub restart: usize,
     /// Largest relative residual asked of a linear solve (early iterations). Default 0.1.
     pub forcing_max: f64,
+    /// Relative residual asked of a linear solve while the contact active set still changes
+    /// in more than 1% of the contact nodes. Default 0.5.
+    pub forcing_active_set: f64,
     /// Smallest relative residual asked of a linear solve. Default 1e-2 (a correction then
     /// carries an error of about 1% of itself, far below the tolerance near convergence).
     pub forcing_min: f64,
@@ -85,6 +88,7 @@ impl Default for NewtonKrylovParams {
             max_linear_iterations: 200,
             restart: 40,
             forcing_max: 0.1,
+            forcing_active_set: 0.5,
             forcing_min: 1e-2,
             divergence_factor: 100.0,
             preconditioner: TwoLevelParams::default(),
@@ -266,6 +270,12 @@ impl NewtonKrylov {
             "forcing_max",
             p.forcing_max,
             p.forcing_max > 0.0 && p.forcing_max < 1.0,
+            "must lie in (0, 1)",
+        )?;
+        check_param(
+            "forcing_active_set",
+            p.forcing_active_set,
+            p.forcing_active_set > 0.0 && p.forcing_active_set < 1.0,
             "must lie in (0, 1)",
         )?;
         check_param(
@@ -541,7 +551,16 @@ impl NewtonKrylov {
                 // While prescribed displacement remains to be applied, the step carries it
                 // into the mesh: solve it accurately, or the elements next to the prescribed
                 // nodes take the whole jump and invert.
-                let rtol = if applied < 1.0 { p.forcing_min } else { eta };
+                // While the active set still moves (more than 1% of the contact nodes changed
+                // state), the step only has to point the right way: the next linearisation
+                // is about another set.
+                let rtol = if applied < 1.0 {
+                    p.forcing_min
+                } else if changes as f64 > 0.01 * contact_nodes.len() as f64 {
+                    p.forcing_active_set.max(eta)
+                } else {
+                    eta
+                };
                 let info = gmres.solve(
                     &mut op,
                     &mut prec,

@@ -30,8 +30,9 @@ use faer::{Conj, MatMut, Par, Side};
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
+use crate::kernels::simd::dispatch;
 use crate::model::Model;
-use crate::sparse::{BlockCsr32, RankOneSum32, max_abs};
+use crate::sparse::{BlockCsr32, RankOneSum32, Rows, max_abs};
 use crate::stiffness::{LinearStiffness, StiffnessScratch};
 
 /// Parameters of [`TwoLevel`].
@@ -414,19 +415,37 @@ impl TwoLevel {
         m
     }
 
-    /// `y = Π K₀ x` for `x` in the range of `Π` (single-precision operator).
-    fn op(
+    /// `f(a, (Π K₀ x)_a)` for every node `a`, in one pass over the rows after the nodal
+    /// terms' pass (single-precision operator; `x` in the range of `Π`).
+    fn op_with(
         &self,
         pi: &Projector,
         x: &[Vector3<f64>],
-        y: &mut [Vector3<f64>],
         s: &mut StiffnessScratch,
+        out: &mut [Vector3<f64>],
+        f: impl Fn(usize, &mut Vector3<f64>, Vector3<f64>) + Sync,
     ) {
-        self.op32.elements.mul(x, y);
         if let Some(nodal) = &self.op32.nodal {
-            nodal.add_mul(x, y, s.terms_mut());
+            nodal.project_into(x, s.terms_mut());
         }
-        pi.apply(y);
+        let terms: &[f64] = s.terms_mut();
+        let nodal = self.op32.nodal.as_ref();
+        let elements = &self.op32.elements;
+        let f = &f;
+        out.par_chunks_mut(ROWS).enumerate().for_each(|(k, chunk)| {
+            dispatch(Rows {
+                a: elements,
+                nodal,
+                terms,
+                x,
+                out: chunk,
+                start: k * ROWS,
+                then: |a: usize, o: &mut Vector3<f64>, y: Vector3<f64>| {
+                    let y = if pi.constrained[a] { pi.matrix[a] * y } else { y };
+                    f(a, o, y);
+                },
+            })
+        });
     }
 
     /// Chebyshev smoothing from zero: `x += p(D⁻¹A) D⁻¹ r`; `r` is overwritten.
@@ -448,26 +467,30 @@ impl TwoLevel {
         let mut rho = 1.0 / sigma;
         let inv = &con.inv_diag;
         let pi = &con.projector;
-        d.par_iter_mut().zip(r.par_iter()).enumerate().with_min_len(1024).for_each(
-            |(a, (da, ra))| {
+        d.par_iter_mut()
+            .zip(r.par_iter())
+            .zip(x.par_iter_mut())
+            .enumerate()
+            .with_min_len(ROWS)
+            .for_each(|(a, ((da, ra), xa))| {
                 *da = inv[a] * ra / theta;
-            },
-        );
-        axpy_into(x, d);
+                *xa += *da;
+            });
         for _ in 1..self.params.degree {
-            self.op(pi, d, t, s);
+            self.op_with(pi, d, s, t, |_, ta, y| *ta = y);
             let rho_new = 1.0 / (2.0 * sigma - rho);
             let (c1, c2) = (rho_new * rho, 2.0 * rho_new / delta);
             r.par_iter_mut()
                 .zip(d.par_iter_mut())
                 .zip(t.par_iter())
+                .zip(x.par_iter_mut())
                 .enumerate()
-                .with_min_len(1024)
-                .for_each(|(a, ((ra, da), ta))| {
+                .with_min_len(ROWS)
+                .for_each(|(a, (((ra, da), ta), xa))| {
                     *ra -= ta;
                     *da = *da * c1 + inv[a] * *ra * c2;
+                    *xa += *da;
                 });
-            axpy_into(x, d);
             rho = rho_new;
         }
     }
@@ -482,25 +505,16 @@ impl TwoLevel {
     ) {
         let TwoLevelScratch { r, d, t, e, k, coarse, mem } = s;
         let pi = &con.projector;
-        x.iter_mut().for_each(|v| *v = Vector3::zeros());
+        x.par_iter_mut().with_min_len(ROWS).for_each(|v| *v = Vector3::zeros());
         r.copy_from_slice(b);
         self.chebyshev(con, r, x, d, t, k);
-        // Residual after pre-smoothing, coarse correction.
-        self.op(pi, x, t, k);
-        r.par_iter_mut().zip(b.par_iter()).zip(t.par_iter()).with_min_len(1024).for_each(
-            |((ra, ba), ta)| {
-                *ra = ba - ta;
-            },
-        );
+        // Residual after pre-smoothing, coarse correction, and the residual after it.
+        self.op_with(pi, x, k, r, |a, ra, y| *ra = b[a] - y);
         self.coarse_correct(pi, r, e, coarse, mem);
-        axpy_into(x, e);
-        self.op(pi, e, t, k);
-        r.par_iter_mut().zip(t.par_iter()).with_min_len(1024).for_each(|(ra, ta)| *ra -= ta);
-        let mut y = std::mem::take(e);
-        y.iter_mut().for_each(|v| *v = Vector3::zeros());
-        self.chebyshev(con, r, &mut y, d, t, k);
-        axpy_into(x, &y);
-        *e = y;
+        x.par_iter_mut().zip(e.par_iter()).with_min_len(ROWS).for_each(|(xa, ea)| *xa += ea);
+        self.op_with(pi, e, k, r, |_, ra, y| *ra -= y);
+        // Post-smoothing accumulates into x directly.
+        self.chebyshev(con, r, x, d, t, k);
     }
 
     /// `e = Π P A_c⁻¹ Pᵀ Π r`.
@@ -541,9 +555,9 @@ impl TwoLevel {
     }
 }
 
-fn axpy_into(x: &mut [Vector3<f64>], d: &[Vector3<f64>]) {
-    x.par_iter_mut().zip(d.par_iter()).with_min_len(1024).for_each(|(xa, da)| *xa += da);
-}
+/// Nodes per rayon task in the cycle's passes: few enough tasks that the fork-join overhead
+/// stays small next to the work of a pass.
+const ROWS: usize = 2048;
 
 /// Largest eigenvalue of `D⁻¹ Π K₀ Π` by the power method (deterministic start).
 fn power_max(

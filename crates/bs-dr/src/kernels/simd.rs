@@ -24,6 +24,8 @@ pub(crate) trait Lanes: Copy {
     fn load(self, a: [f64; 4]) -> Self::V;
     /// Lanes to an array.
     fn store(self, v: Self::V) -> [f64; 4];
+    /// Lanes from four f32 (converted exactly to f64).
+    fn load_f32(self, a: [f32; 4]) -> Self::V;
     fn add(self, a: Self::V, b: Self::V) -> Self::V;
     fn sub(self, a: Self::V, b: Self::V) -> Self::V;
     fn mul(self, a: Self::V, b: Self::V) -> Self::V;
@@ -130,6 +132,10 @@ impl Lanes for Portable {
         v
     }
     #[inline(always)]
+    fn load_f32(self, a: [f32; 4]) -> [f64; 4] {
+        [a[0] as f64, a[1] as f64, a[2] as f64, a[3] as f64]
+    }
+    #[inline(always)]
     fn add(self, a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
         lanewise!(a + b)
     }
@@ -215,6 +221,10 @@ impl Lanes for Avx {
     #[inline(always)]
     fn store(self, v: Self::V) -> [f64; 4] {
         pulp::cast(v)
+    }
+    #[inline(always)]
+    fn load_f32(self, a: [f32; 4]) -> Self::V {
+        self.0.avx._mm256_cvtps_pd(pulp::cast(a))
     }
     #[inline(always)]
     fn add(self, a: Self::V, b: Self::V) -> Self::V {
@@ -326,6 +336,7 @@ mod tests {
                 (0..6).map(|i| [i as f64, 10.0 + i as f64, 20.0 + i as f64, 0.0]).collect();
             let g = l.gather_xyz(&p, [5, 0, 3, 3]).map(|v| l.store(v));
             let m = l.positive_finite_mask(l.load([1.0, -1.0, f64::INFINITY, f64::NAN]));
+            let r = l.add(r, l.load_f32([0.25, -1.5, 3.0e-3, 7.0]));
             let t =
                 l.transpose([0.0, 4.0, 8.0, 12.0].map(|s| l.load([s, s + 1.0, s + 2.0, s + 3.0])));
             (l.store(r), g, m, t.map(|v| l.store(v)))
