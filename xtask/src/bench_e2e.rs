@@ -21,10 +21,10 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use bs_cli::check::Prepared;
-use bs_cli::scene::SolverKind;
-use bs_cli::study::{Variant, difference};
 use bs_mesh::{TetLocator, Vector3, transfer};
+use bs_scene::Prepared;
+use bs_scene::scene::SolverKind;
+use bs_scene::study::{Variant, difference};
 
 use crate::chart::replace_block;
 use crate::validate::{field, read_reference, root};

@@ -1,6 +1,6 @@
 //! `cargo xtask chart`: speed against accuracy. Every configuration of a case (mesh density,
 //! element technology, DR tolerance, contact handler; DR against Newton without contact) is
-//! solved through the code path of `brainshift run` ([`bs_cli::study`]), timed, and compared
+//! solved through the code path of `brainshift run` ([`bs_scene::study`]), timed, and compared
 //! with the finest converged solution of the case: the finest mesh, T4ANP, DR tolerance
 //! 1e-5 mm. Results on other meshes are compared at their own nodes, with the reference
 //! carried over by [`bs_mesh::TetLocator`]. CalculiX's stored solutions are placed on the
@@ -9,16 +9,17 @@
 //!
 //! Writes `docs/charts/speed-accuracy-<case>.{svg,png,csv}`, `docs/charts/dr-vs-newton.*`,
 //! the findings table into `docs/speed-accuracy.md` (between markers) and the findings that
-//! `brainshift check` prints as advice into `crates/bs-cli/data/speed-accuracy.json`.
+//! `brainshift check` prints as advice into `crates/bs-scene/data/speed-accuracy.json`.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use bs_cli::check::Prepared;
-use bs_cli::scene::{Algorithm, ElementChoice, SolverKind};
-use bs_cli::study::{ContactChoice, Variant, difference};
 use bs_mesh::quality::mean_edge_length;
 use bs_mesh::{TetLocator, Vector3, transfer};
+use bs_scene::findings::{ChartPoint, Findings, TARGETS, cheapest, pareto_front};
+use bs_scene::prepare::Prepared;
+use bs_scene::scene::{Algorithm, ElementChoice, SolverKind};
+use bs_scene::study::{ContactChoice, Variant, difference};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
@@ -56,62 +57,6 @@ fn short(s: SolverKind) -> &'static str {
 }
 /// Tolerances of the sweep (mm).
 pub const TOLERANCES: [f64; 4] = [1e-1, 1e-2, 1e-3, 1e-4];
-/// Accuracy targets named in the findings (mean nodal error, mm).
-pub const TARGETS: [f64; 2] = [0.1, 0.5];
-
-/// One solved (or failed) configuration.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ChartPoint {
-    /// Case name (`ellipsoid`, `mni152`).
-    pub case: String,
-    /// Legend entry the point belongs to.
-    pub series: String,
-    /// Mesh level label.
-    pub level: String,
-    /// Element technology (`t4`, `t4anp`) or CalculiX's element.
-    pub element: String,
-    /// `dr`, `newton` or `calculix`.
-    pub solver: String,
-    /// Contact handler (`none` without skull, `penalty` for CalculiX).
-    pub handler: String,
-    /// DR/Newton tolerance (mm); NaN for CalculiX.
-    pub tolerance: f64,
-    /// Nodes of the mesh.
-    pub nodes: usize,
-    /// Mean element edge of the mesh (mm).
-    pub mean_edge: f64,
-    /// Bounding-box diagonal of the mesh (mm).
-    pub diagonal: f64,
-    /// Wall time: setup and solve (s).
-    pub seconds: f64,
-    /// DR steps or Newton iterations (0 for CalculiX).
-    pub steps: usize,
-    /// Mean nodal |u − u_ref| (mm).
-    pub mean_error: f64,
-    /// Largest nodal |u − u_ref| (mm).
-    pub max_error: f64,
-    /// Mean nodal |u − u_ccx(K=10)| where that reference exists on this mesh (mm).
-    pub mean_error_ccx: Option<f64>,
-    /// Whether this point is the case's reference (error 0 by definition).
-    pub is_reference: bool,
-}
-
-impl ChartPoint {
-    /// A short name of the configuration.
-    pub fn label(&self) -> String {
-        if self.solver == "calculix" {
-            return format!("CalculiX {} ({})", self.handler, self.level);
-        }
-        format!(
-            "{} {} {} tol {:.0e}{}",
-            self.level,
-            self.element,
-            self.solver,
-            self.tolerance,
-            if self.handler == "none" { String::new() } else { format!(" {}", self.handler) }
-        )
-    }
-}
 
 /// A case: its mesh levels from coarse to fine (scene files), and which level CalculiX's
 /// stored references were computed on.
@@ -164,14 +109,6 @@ fn diagonal(p: &Prepared) -> f64 {
     p.mesh.bounding_box().map_or(f64::NAN, |(a, b)| (b - a).norm())
 }
 
-fn element_name(e: ElementChoice) -> &'static str {
-    match e {
-        ElementChoice::T4 => "t4",
-        ElementChoice::T4anp => "t4anp",
-        ElementChoice::H8 => "h8",
-    }
-}
-
 /// Solves `v` on `level` and measures it against the level's reference field.
 fn measure(case: &str, series: &str, level: &Level, v: &Variant) -> Result<ChartPoint, String> {
     let q = v.apply(&level.p).map_err(|e| e.to_string())?;
@@ -181,7 +118,7 @@ fn measure(case: &str, series: &str, level: &Level, v: &Variant) -> Result<Chart
         case: case.into(),
         series: series.into(),
         level: level.label.into(),
-        element: element_name(q.element).into(),
+        element: ElementChoice::name(q.element).into(),
         solver: q.scene.solver.kind.name().into(),
         handler: q.scene.contact.as_ref().map_or("none", |c| c.algorithm.name()).into(),
         tolerance: q.scene.solver.tolerance,
@@ -236,7 +173,7 @@ fn levels_with_reference(
         case: case.name.into(),
         series: "reference".into(),
         level: (*finest_label).into(),
-        element: element_name(q.element).into(),
+        element: ElementChoice::name(q.element).into(),
         solver: q.scene.solver.kind.name().into(),
         handler: q.scene.contact.as_ref().map_or("none", |c| c.algorithm.name()).into(),
         tolerance: q.scene.solver.tolerance,
@@ -274,7 +211,8 @@ fn contact_sweep(case: &Case) -> Result<Vec<ChartPoint>, String> {
     for level in &levels {
         for solver in SOLVERS {
             for element in [ElementChoice::T4, ElementChoice::T4anp] {
-                let series = format!("{} {} {}", element_name(element), level.label, short(solver));
+                let series =
+                    format!("{} {} {}", ElementChoice::name(element), level.label, short(solver));
                 for tol in TOLERANCES {
                     let v = Variant {
                         element: Some(element),
@@ -376,41 +314,6 @@ fn newton_sweep(case: &Case) -> Result<Vec<ChartPoint>, String> {
         }
     }
     Ok(points)
-}
-
-/// Indices of the points on the Pareto front (no other point is both faster and more
-/// accurate), sorted by time. Reference points and CalculiX are left out: the front is of
-/// brainshift's own configurations.
-pub fn pareto_front(points: &[ChartPoint]) -> Vec<usize> {
-    let mut idx: Vec<usize> = (0..points.len())
-        .filter(|&i| {
-            let p = &points[i];
-            !p.is_reference && p.solver != "calculix" && p.seconds.is_finite()
-        })
-        .collect();
-    idx.sort_by(|&a, &b| {
-        points[a]
-            .seconds
-            .total_cmp(&points[b].seconds)
-            .then(points[a].mean_error.total_cmp(&points[b].mean_error))
-    });
-    let mut front = Vec::new();
-    let mut best = f64::INFINITY;
-    for i in idx {
-        if points[i].mean_error < best {
-            best = points[i].mean_error;
-            front.push(i);
-        }
-    }
-    front
-}
-
-/// The fastest of brainshift's configurations whose mean error is within `target`.
-pub fn cheapest(points: &[ChartPoint], target: f64) -> Option<&ChartPoint> {
-    points
-        .iter()
-        .filter(|p| !p.is_reference && p.solver != "calculix" && p.mean_error <= target)
-        .min_by(|a, b| a.seconds.total_cmp(&b.seconds))
 }
 
 /// The chart of one case: log-log, one line per tolerance sweep, handler and CalculiX
@@ -644,42 +547,6 @@ pub fn findings_markdown(case: &str, points: &[ChartPoint]) -> String {
 
 /// What `brainshift check` needs to give advice: per case and target, the cheapest
 /// configuration in scene terms (relative mesh size, element, relative tolerance).
-fn advice_json(all: &[(String, Vec<ChartPoint>)]) -> serde_json::Value {
-    let mut cases = Vec::new();
-    for (case, points) in all {
-        let Some(r) = points.iter().find(|p| p.is_reference) else { continue };
-        let mut targets = Vec::new();
-        for t in TARGETS {
-            if let Some(p) = cheapest(points, t) {
-                targets.push(serde_json::json!({
-                    "target_mm": t,
-                    "element": p.element,
-                    "solver": p.solver,
-                    "handler": p.handler,
-                    "tolerance_mm": p.tolerance,
-                    "mean_edge_mm": p.mean_edge,
-                    "seconds": p.seconds,
-                    "mean_error_mm": p.mean_error,
-                    "max_error_mm": p.max_error,
-                    "level": p.level,
-                }));
-            }
-        }
-        cases.push(serde_json::json!({
-            "case": case,
-            "reference_mean_edge_mm": r.mean_edge,
-            "diagonal_mm": r.diagonal,
-            "reference_seconds": r.seconds,
-            "targets": targets,
-        }));
-    }
-    serde_json::json!({
-        "generated_by": "cargo xtask chart",
-        "note": "cheapest configuration meeting each mean-error target, measured against the finest converged solution",
-        "cases": cases,
-    })
-}
-
 fn write(path: &Path, text: &str) -> Result<(), String> {
     if let Some(d) = path.parent() {
         std::fs::create_dir_all(d).map_err(|e| format!("{}: {e}", d.display()))?;
@@ -796,73 +663,12 @@ pub fn main(args: &[String]) -> Result<(), String> {
     }
     if only.is_none() {
         replace_block(&root().join("docs/speed-accuracy.md"), "findings", &findings)?;
-        let json = serde_json::to_string_pretty(&advice_json(&all)).map_err(|e| e.to_string())?;
-        write(&root().join("crates/bs-cli/data/speed-accuracy.json"), &(json + "\n"))?;
+        let json = serde_json::to_string_pretty(&Findings::from_points(&all))
+            .map_err(|e| e.to_string())?;
+        write(&root().join("crates/bs-scene/data/speed-accuracy.json"), &(json + "\n"))?;
     } else {
         print!("{findings}");
     }
     println!("charts written to {}", charts_dir().display());
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn point(seconds: f64, mean_error: f64) -> ChartPoint {
-        ChartPoint {
-            case: "t".into(),
-            series: "s".into(),
-            level: "l".into(),
-            element: "t4".into(),
-            solver: "dr".into(),
-            handler: "paper".into(),
-            tolerance: 1e-3,
-            nodes: 1,
-            mean_edge: 1.0,
-            diagonal: 1.0,
-            seconds,
-            steps: 1,
-            mean_error,
-            max_error: mean_error,
-            mean_error_ccx: None,
-            is_reference: false,
-        }
-    }
-
-    /// The front of a hand-made set, checked against the definition by brute force: a point
-    /// is on it iff no other point is at least as fast and strictly more accurate.
-    #[test]
-    fn pareto_front_matches_its_definition() {
-        let pts: Vec<ChartPoint> =
-            [(1.0, 0.5), (2.0, 0.6), (2.0, 0.2), (3.0, 0.2), (4.0, 0.05), (5.0, 0.3), (6.0, 0.01)]
-                .iter()
-                .map(|&(s, e)| point(s, e))
-                .collect();
-        let front = pareto_front(&pts);
-        assert_eq!(front, vec![0, 2, 4, 6]);
-        for (i, p) in pts.iter().enumerate() {
-            let dominated = pts.iter().enumerate().any(|(j, q)| {
-                j != i
-                    && q.seconds <= p.seconds
-                    && q.mean_error <= p.mean_error
-                    && (q.seconds < p.seconds || q.mean_error < p.mean_error)
-            });
-            assert_eq!(front.contains(&i), !dominated, "point {i}");
-        }
-        assert_eq!(cheapest(&pts, 0.25).map(|p| p.seconds), Some(2.0));
-        assert_eq!(cheapest(&pts, 0.001), None);
-    }
-
-    /// References and CalculiX never count as brainshift's configurations.
-    #[test]
-    fn references_and_calculix_are_not_candidates() {
-        let mut r = point(0.1, 0.0);
-        r.is_reference = true;
-        let mut c = point(0.2, 0.0);
-        c.solver = "calculix".into();
-        let pts = vec![r, c, point(1.0, 0.3)];
-        assert_eq!(pareto_front(&pts), vec![2]);
-        assert_eq!(cheapest(&pts, 0.5).map(|p| p.seconds), Some(1.0));
-    }
 }

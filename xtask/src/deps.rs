@@ -14,20 +14,31 @@ pub const ALLOWED: &[(&str, &[&str])] = &[
     ("bs-material", &[]),
     ("bs-contact", &["bs-mesh"]),
     ("bs-dr", &["bs-mesh", "bs-material"]),
-    ("bs-cli", &["bs-mesh", "bs-material", "bs-dr", "bs-contact"]),
-    ("xtask", &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-cli"]),
+    ("bs-scene", &["bs-mesh", "bs-material", "bs-dr", "bs-contact"]),
+    ("bs-cli", &["bs-mesh", "bs-dr", "bs-contact", "bs-scene"]),
+    ("xtask", &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-scene"]),
 ];
+
+/// Extra edges allowed for dev-dependencies only (tests checking a front end against a
+/// lower crate's closed forms).
+pub const ALLOWED_DEV: &[(&str, &[&str])] = &[("bs-cli", &["bs-material"])];
 
 /// Why an edge is forbidden, for the error message.
 fn rule_for(from: &str, to: &str) -> &'static str {
     match (from, to) {
         ("bs-dr", "bs-contact") | ("bs-contact", "bs-dr") => {
             "the solver and the contact handlers must stay swappable: bs-dr owns the contact \
-             trait and bs-cli adapts bs-contact to it"
+             trait and bs-scene adapts bs-contact to it"
+        }
+        ("bs-cli", "bs-material") => {
+            "bs-cli is a front end: materials are built by bs-scene from the scene's moduli"
+        }
+        ("xtask", "bs-cli") => {
+            "xtask drives bs-scene, as every front end does, not the binary's code"
         }
         ("bs-material", _) => "materials know no meshes, elements or solvers",
         ("bs-mesh", _) => "bs-mesh is the bottom layer and depends on no other brainshift crate",
-        _ => "only bs-cli (and xtask) compose the layers",
+        _ => "only bs-scene composes the layers; front ends (bs-cli, xtask) build on it",
     }
 }
 
@@ -69,8 +80,10 @@ pub fn check(metadata: &Value) -> Result<usize, String> {
                 continue;
             }
             edges += 1;
-            if !allowed.contains(&dep) {
-                let kind = d["kind"].as_str().unwrap_or("normal");
+            let kind = d["kind"].as_str().unwrap_or("normal");
+            let dev_ok = kind == "dev"
+                && ALLOWED_DEV.iter().any(|(n, a)| *n == name && a.contains(&dep));
+            if !allowed.contains(&dep) && !dev_ok {
                 problems.push(format!(
                     "forbidden dependency {name} -> {dep} ({kind}): {}",
                     rule_for(name, dep)
@@ -81,6 +94,97 @@ pub fn check(metadata: &Value) -> Result<usize, String> {
     if problems.is_empty() { Ok(edges) } else { Err(problems.join("\n")) }
 }
 
+/// Crates whose top-level modules must not import each other in a circle.
+pub const ACYCLIC: &[&str] = &["bs-scene", "bs-cli"];
+
+/// The top-level modules of a crate's `src` and the modules each names through `crate::`
+/// (a `use crate::m` or a `crate::m::` path anywhere in the file).
+pub fn module_graph(src: &std::path::Path) -> Result<Vec<(String, Vec<String>)>, String> {
+    let mut graph = Vec::new();
+    let entries = std::fs::read_dir(src).map_err(|e| format!("{}: {e}", src.display()))?;
+    let mut files: Vec<std::path::PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "rs"))
+        .collect();
+    files.sort();
+    let names: Vec<String> =
+        files.iter().filter_map(|f| Some(f.file_stem()?.to_str()?.to_string())).collect();
+    for (file, name) in files.iter().zip(&names) {
+        if name == "lib" || name == "main" {
+            continue;
+        }
+        let text = std::fs::read_to_string(file).map_err(|e| format!("{}: {e}", file.display()))?;
+        let code: String = text
+            .lines()
+            .filter(|l| !l.trim_start().starts_with("//"))
+            .collect::<Vec<_>>()
+            .join("\n");
+        let mut uses: Vec<String> = names
+            .iter()
+            .filter(|m| *m != name && *m != "lib" && *m != "main")
+            .filter(|m| {
+                code.contains(&format!("crate::{m}::"))
+                    || code.contains(&format!("crate::{m};"))
+                    || code.contains(&format!("crate::{m}}}"))
+                    || code.contains(&format!("crate::{m},"))
+            })
+            .cloned()
+            .collect();
+        uses.sort();
+        graph.push((name.clone(), uses));
+    }
+    Ok(graph)
+}
+
+/// Checks every crate of [`ACYCLIC`] for module cycles; returns how many were checked.
+pub fn check_modules() -> Result<usize, String> {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    for krate in ACYCLIC {
+        let graph = module_graph(&root.join("crates").join(krate).join("src"))?;
+        if let Some(c) = find_cycle(&graph) {
+            return Err(format!(
+                "{krate}: module cycle {}; move what both need into a module of its own",
+                c.join(" -> ")
+            ));
+        }
+    }
+    Ok(ACYCLIC.len())
+}
+
+/// A cycle of `graph` as a path `a -> b -> ... -> a`, if any.
+pub fn find_cycle(graph: &[(String, Vec<String>)]) -> Option<Vec<String>> {
+    fn visit(
+        n: &str,
+        graph: &[(String, Vec<String>)],
+        state: &mut std::collections::HashMap<String, u8>,
+        path: &mut Vec<String>,
+    ) -> Option<Vec<String>> {
+        match state.get(n) {
+            Some(2) => return None,
+            Some(1) => {
+                let at = path.iter().position(|p| p == n).unwrap_or(0);
+                let mut cycle = path[at..].to_vec();
+                cycle.push(n.to_string());
+                return Some(cycle);
+            }
+            _ => {}
+        }
+        state.insert(n.to_string(), 1);
+        path.push(n.to_string());
+        let edges = graph.iter().find(|(m, _)| m == n).map(|(_, e)| e.as_slice()).unwrap_or(&[]);
+        for e in edges {
+            if let Some(c) = visit(e, graph, state, path) {
+                return Some(c);
+            }
+        }
+        path.pop();
+        state.insert(n.to_string(), 2);
+        None
+    }
+    let mut state = std::collections::HashMap::new();
+    graph.iter().find_map(|(n, _)| visit(n, graph, &mut state, &mut Vec::new()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -89,8 +193,9 @@ mod tests {
     #[test]
     fn workspace_graph_follows_the_layering_rules() {
         let edges = check_workspace().unwrap_or_else(|e| panic!("{e}"));
-        // bs-contact -> bs-mesh, bs-dr -> {bs-mesh, bs-material}, bs-cli -> 4 crates.
-        assert!(edges >= 7, "expected at least the 7 layering edges, found {edges}");
+        // bs-contact -> bs-mesh, bs-dr -> {bs-mesh, bs-material}, bs-scene -> 4 crates,
+        // bs-cli -> bs-scene.
+        assert!(edges >= 8, "expected at least the 8 layering edges, found {edges}");
     }
 
     fn package(name: &str, deps: &[&str]) -> Value {
@@ -137,5 +242,33 @@ mod tests {
         // Every allowed edge present, nothing else: 0 problems, edge count = table size.
         let expected: usize = ALLOWED.iter().map(|(_, a)| a.len()).sum();
         assert_eq!(check(&workspace_with(("bs-mesh", "serde"))), Ok(expected));
+    }
+
+    #[test]
+    fn composing_crates_have_no_module_cycles() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        for krate in ACYCLIC {
+            let graph = module_graph(&root.join("crates").join(krate).join("src")).unwrap();
+            assert!(graph.len() >= 4, "{krate}: expected its modules, found {graph:?}");
+        }
+        assert_eq!(check_modules(), Ok(ACYCLIC.len()));
+    }
+
+    #[test]
+    fn a_module_cycle_is_found() {
+        let g = |e: &[(&str, &[&str])]| -> Vec<(String, Vec<String>)> {
+            e.iter()
+                .map(|(n, d)| (n.to_string(), d.iter().map(|x| x.to_string()).collect()))
+                .collect()
+        };
+        let cyclic =
+            g(&[("advice", &["check"]), ("check", &["compose"]), ("compose", &["advice"])]);
+        assert_eq!(
+            find_cycle(&cyclic).map(|c| c.join(" -> ")),
+            Some("advice -> check -> compose -> advice".to_string())
+        );
+        let acyclic =
+            g(&[("advice", &["prepare"]), ("check", &["advice", "prepare"]), ("prepare", &[])]);
+        assert_eq!(find_cycle(&acyclic), None);
     }
 }

@@ -38,7 +38,8 @@ const HELP: &str = "\
 cargo xtask <command>
 
 Commands:
-  deps            check the workspace crate graph against the layering rules
+  deps            check the workspace crate graph against the layering rules and the
+                  composing crates for module cycles
   bench solver    kernel ns/element-step (1 vs 2 threads), DR vs Newton (release)
   bench contact   contact handlers on the paper's benchmark (writes docs/contact-bench.md)
   bench e2e       [--case NAME] [--repeat N] every contact fixture solved by DR (baseline) and
@@ -86,9 +87,13 @@ fn report(result: Result<(), String>, what: &str) -> ExitCode {
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     match args.first().map(String::as_str) {
-        Some("deps") => match deps::check_workspace() {
-            Ok(edges) => {
-                println!("crate graph OK ({edges} workspace edges checked)");
+        Some("deps") => match deps::check_workspace().and_then(|e| Ok((e, deps::check_modules()?)))
+        {
+            Ok((edges, crates)) => {
+                println!(
+                    "crate graph OK ({edges} workspace edges checked); no module cycles in \
+                     {crates} crates"
+                );
                 ExitCode::SUCCESS
             }
             Err(e) => {

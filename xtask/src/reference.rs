@@ -22,9 +22,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use bs_cli::check::Prepared;
-use bs_cli::scene::MaterialModel;
 use bs_mesh::{ElementKind, Point3, Vector3};
+use bs_scene::Prepared;
+use bs_scene::scene::MaterialModel;
 
 /// A reference case: a fixture folder, its scene and the slopes to run.
 #[derive(Debug, Clone, Copy)]
@@ -212,7 +212,7 @@ impl Deck {
         if hexes > 0 || tets == 0 {
             return Err("CalculiX references are written for tetrahedral meshes (C3D4)".into());
         }
-        let composed = bs_cli::compose::compose(p).map_err(|e| e.to_string())?;
+        let composed = bs_scene::compose::compose(p).map_err(|e| e.to_string())?;
         // Stresses in N per length unit squared: Pa × (metres per unit)².
         let stress = p.scene.units.metres().powi(2);
         let mut brain = String::new();
@@ -519,13 +519,13 @@ impl Collected {
 
 /// Largest distance of a slave node outside the skull in a displacement field given by id.
 fn penetration(p: &Prepared, u: &[(u64, [f64; 3])]) -> Result<f64, String> {
-    let c = bs_cli::compose::compose(p).map_err(|e| e.to_string())?;
+    let c = bs_scene::compose::compose(p).map_err(|e| e.to_string())?;
     let mut field = vec![Vector3::zeros(); p.mesh.nodes.len()];
     for (id, d) in u {
         let i = p.mesh.node_index(*id).ok_or_else(|| format!("ccx printed unknown node {id}"))?;
         field[i] = Vector3::new(d[0], d[1], d[2]);
     }
-    Ok(bs_cli::study::contact_state(p, &c, &field, 0.0).max_penetration)
+    Ok(bs_scene::verify::contact_state(p, &c, &field, 0.0).max_penetration)
 }
 
 #[cfg(test)]

@@ -22,12 +22,12 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use bs_cli::check::Prepared;
-use bs_cli::scene::{Algorithm, ElementChoice, SolverKind};
-use bs_cli::study::{ContactChoice, Failure, Outcome, Variant, difference};
 use bs_dr::SolveError;
 use bs_mesh::io::Fields;
 use bs_mesh::{Mesh, Point3, TriSurface};
+use bs_scene::Prepared;
+use bs_scene::scene::{Algorithm, ElementChoice, SolverKind};
+use bs_scene::study::{ContactChoice, Failure, Outcome, Variant, difference};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 

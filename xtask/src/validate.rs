@@ -17,12 +17,12 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use bs_cli::check::Prepared;
-use bs_cli::scene::{Algorithm, ElementChoice, SolverKind};
-use bs_cli::study::{ContactChoice, Outcome, Variant, difference};
 use bs_contact::shapes::{self, Rng};
 use bs_contact::{BruteForce, ClosestPoint, Handler, MasterSurface, PaperParams};
 use bs_mesh::{Point3, TriSurface, Vector3};
+use bs_scene::Prepared;
+use bs_scene::scene::{Algorithm, ElementChoice, SolverKind};
+use bs_scene::study::{ContactChoice, Outcome, Variant, difference};
 
 /// One line of the validation table.
 #[derive(Debug, Clone)]

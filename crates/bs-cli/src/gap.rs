@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use bs_contact::{Handler, MasterSurface, PaperParams};
 use bs_mesh::Point3;
 
-use crate::scene::Algorithm;
+use bs_scene::scene::Algorithm;
 
 /// What to measure.
 #[derive(Debug)]
@@ -62,7 +62,7 @@ pub fn run(
     let sk = skull_path.display();
     let master = MasterSurface::new(&skull).map_err(|e| format!("{sk}: {e}"))?;
     let mut handler =
-        Handler::new(crate::compose::algorithm(algorithm), &skull, PaperParams::default())
+        Handler::new(bs_scene::compose::algorithm(algorithm), &skull, PaperParams::default())
             .map_err(|e| format!("{sk}: {e}"))?;
     let (ids, points): (Vec<u64>, Vec<Point3<f64>>) = match query {
         Query::Mesh(path) => {

@@ -1,16 +1,11 @@
-//! The brainshift program as a library: scene loading and checking, composition of the
-//! solver and contact crates, runs, and [`study`] (one scene solved with variations, what
-//! `cargo xtask validate|chart|stability` measure). The `brainshift` binary is a thin
-//! command-line front end over these modules.
+//! The `brainshift` command-line program: one module per command, each a thin front end
+//! (argument handling, progress, printing) over `bs-scene` (scenes, runs, checks) and
+//! `bs-mesh` (`inspect`).
 
-pub mod advice;
 pub mod check;
-pub mod compose;
 pub mod gap;
 pub mod inspect;
 pub mod run;
-pub mod scene;
-pub mod study;
 
 /// Writes `text` to standard output. A closed pipe (`brainshift inspect x | head`) is not an
 /// error worth a message: the reader has what it wanted, so the program ends quietly.

@@ -1,6 +1,7 @@
 //! `brainshift`: brain shift computation for image-guided neurosurgery.
 
-use bs_cli::{check, gap, inspect, run, scene};
+use bs_cli::{check, gap, inspect, run};
+use bs_scene::scene;
 
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -26,10 +26,11 @@
 //! Paths are relative to the scene file. Unknown keys are errors (a misspelt key must not be
 //! silently ignored).
 
-use std::fmt;
 use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
+
+use crate::SceneError;
 
 /// Length unit of the mesh files. Stresses and moduli are always in Pa.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
@@ -69,6 +70,43 @@ pub enum ElementChoice {
     T4anp,
     /// Mean-strain hexahedron with hourglass control.
     H8,
+}
+
+impl ElementChoice {
+    /// Every technology, in the order tables list them.
+    pub const ALL: [ElementChoice; 3] =
+        [ElementChoice::T4, ElementChoice::T4anp, ElementChoice::H8];
+
+    /// The name used in scene files, reports and tables (`"t4"`, `"t4anp"`, `"h8"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            ElementChoice::T4 => "t4",
+            ElementChoice::T4anp => "t4anp",
+            ElementChoice::H8 => "h8",
+        }
+    }
+
+    /// The technology of a name (the inverse of [`ElementChoice::name`]).
+    pub fn from_name(name: &str) -> Option<ElementChoice> {
+        ElementChoice::ALL.into_iter().find(|e| e.name() == name)
+    }
+
+    /// The mesh element kind this technology needs.
+    pub fn mesh_kind(self) -> bs_mesh::ElementKind {
+        match self {
+            ElementChoice::H8 => bs_mesh::ElementKind::Hex8,
+            ElementChoice::T4 | ElementChoice::T4anp => bs_mesh::ElementKind::Tet4,
+        }
+    }
+
+    /// The solver's tetrahedral formulation (H8 meshes have no tetrahedra; T4ANP is the
+    /// model's default there).
+    pub fn tet_formulation(self) -> bs_dr::TetFormulation {
+        match self {
+            ElementChoice::T4 => bs_dr::TetFormulation::T4,
+            ElementChoice::T4anp | ElementChoice::H8 => bs_dr::TetFormulation::T4Anp,
+        }
+    }
 }
 
 /// Constitutive model names.
@@ -346,27 +384,10 @@ pub struct Scene {
     pub solver: Solver,
 }
 
-/// A scene that could not be read, naming the file and, where known, the key.
-#[derive(Debug)]
-pub struct SceneError {
-    /// The scene file.
-    pub file: PathBuf,
-    /// What is wrong and how to fix it.
-    pub message: String,
-}
-
-impl fmt::Display for SceneError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}: {}", self.file.display(), self.message)
-    }
-}
-
-impl std::error::Error for SceneError {}
-
 impl Scene {
     /// Reads and checks a scene file; relative paths become relative to its folder.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let err = |message: String| SceneError { file: path.to_path_buf(), message };
+        let err = |message: String| SceneError::Scene { file: path.to_path_buf(), message };
         let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read: {e}")))?;
         let mut scene = Scene::parse(&text).map_err(err)?;
         let dir = path.parent().unwrap_or(Path::new(""));

@@ -1,67 +1,11 @@
 //! "Model no more than a scene needs": what `brainshift check` advises, from the cheapest
 //! configurations that `cargo xtask chart` measured on the benchmark cases (the MNI152
 //! brain and the paper's ellipsoid; `docs/speed-accuracy.md`). The measurements are
-//! embedded at build time from `data/speed-accuracy.json`, which the chart command writes.
+//! embedded at build time ([`crate::findings`]).
 
-use serde::Deserialize;
-
-use crate::check::Prepared;
+use crate::findings::{Findings, Target};
+use crate::prepare::Prepared;
 use crate::scene::ElementChoice;
-
-const DATA: &str = include_str!("../data/speed-accuracy.json");
-
-/// The chart's findings.
-#[derive(Debug, Clone, Deserialize)]
-pub struct Findings {
-    /// One entry per benchmark case.
-    pub cases: Vec<CaseFindings>,
-}
-
-/// The findings of one benchmark case.
-#[derive(Debug, Clone, Deserialize)]
-pub struct CaseFindings {
-    /// Case name.
-    pub case: String,
-    /// Mean element edge of the case's finest mesh (mm).
-    pub reference_mean_edge_mm: f64,
-    /// Bounding-box diagonal of the case's brain (mm).
-    pub diagonal_mm: f64,
-    /// The cheapest configuration per accuracy target.
-    pub targets: Vec<Target>,
-}
-
-/// The cheapest configuration that met one mean-error target.
-#[derive(Debug, Clone, Deserialize)]
-pub struct Target {
-    /// Mean nodal error target (mm).
-    pub target_mm: f64,
-    /// Element technology (`t4`, `t4anp`).
-    pub element: String,
-    /// Solver (`newton-krylov`, `dr`); findings written before the Newton–Krylov solver
-    /// existed have none (they were DR).
-    #[serde(default = "dr")]
-    pub solver: String,
-    /// Solver tolerance (mm).
-    pub tolerance_mm: f64,
-    /// Mean element edge of its mesh (mm).
-    pub mean_edge_mm: f64,
-    /// Its wall time on the benchmark machine (s).
-    pub seconds: f64,
-    /// Its measured mean error (mm).
-    pub mean_error_mm: f64,
-    /// Its largest nodal error (mm): at the rim of the prescribed patch, where each mesh
-    /// resolves the boundary of the set differently.
-    pub max_error_mm: f64,
-}
-
-fn dr() -> String {
-    "dr".into()
-}
-
-/// The embedded findings.
-pub fn findings() -> Result<Findings, String> {
-    serde_json::from_str(DATA).map_err(|e| format!("embedded speed-accuracy findings: {e}"))
-}
 
 fn element_rank(e: &str) -> u8 {
     // T4ANP is at least as accurate as T4 on every mesh of the chart (T4 locks).
@@ -83,11 +27,7 @@ pub fn advise(p: &Prepared, f: &Findings) -> Vec<String> {
     };
     let edge = bs_mesh::quality::mean_edge_length(&p.mesh) * mm;
     let tolerance = p.scene.solver.tolerance * mm;
-    let element = match p.element {
-        ElementChoice::T4 => "t4",
-        ElementChoice::T4anp => "t4anp",
-        ElementChoice::H8 => "h8",
-    };
+    let element = p.element.name();
     let mut out = vec![format!(
         "advice (model no more than the scene needs): on the {} benchmark (`cargo xtask chart`, \
          docs/speed-accuracy.md) the cheapest configurations were",
@@ -147,6 +87,7 @@ pub fn advise(p: &Prepared, f: &Findings) -> Vec<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::findings::CaseFindings;
 
     fn target(target_mm: f64, element: &str, mean_edge_mm: f64, tolerance_mm: f64) -> Target {
         Target {
@@ -158,15 +99,20 @@ mod tests {
             seconds: 1.0,
             mean_error_mm: target_mm / 2.0,
             max_error_mm: target_mm,
+            handler: "coherent".into(),
+            level: "bench".into(),
         }
     }
 
     fn findings_with(targets: Vec<Target>) -> Findings {
         Findings {
+            generated_by: "test".into(),
+            note: String::new(),
             cases: vec![CaseFindings {
                 case: "bench".into(),
                 reference_mean_edge_mm: 0.1,
                 diagonal_mm: 1.7,
+                reference_seconds: 1.0,
                 targets,
             }],
         }
@@ -210,7 +156,7 @@ mod tests {
     /// The embedded file parses and names both benchmark cases with both targets.
     #[test]
     fn embedded_findings_parse() {
-        let f = findings().unwrap();
+        let f = Findings::embedded().unwrap();
         let names: Vec<&str> = f.cases.iter().map(|c| c.case.as_str()).collect();
         assert!(names.contains(&"mni152") && names.contains(&"ellipsoid"), "{names:?}");
         for c in &f.cases {

@@ -6,198 +6,14 @@
 use std::time::Instant;
 
 use bs_contact::PaperParams;
-use bs_dr::{
-    DrParams, DynamicRelaxation, Newton, NewtonKrylov, NewtonKrylovParams, NewtonParams, Progress,
-    Solution, SolveError, Solver,
-};
+use bs_dr::SolveError;
 use nalgebra::Vector3;
 
-use crate::check::Prepared;
-use crate::compose::{ComposeOptions, Composed, compose_with};
+use crate::compose::{ComposeOptions, compose_with};
+use crate::prepare::Prepared;
 use crate::scene::{Algorithm, ElementChoice, SolverKind};
-
-/// How a solve is driven: the scene's `[solver]` table plus the step fraction.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SolveSettings {
-    /// DR or Newton.
-    pub kind: SolverKind,
-    /// Error-estimate tolerance in mesh length units.
-    pub tolerance: f64,
-    /// DR time step as a fraction of the critical step (bs-dr's default 0.8).
-    pub step_fraction: f64,
-    /// DR step budget (bs-dr's default when `None`).
-    pub max_steps: Option<usize>,
-    /// DR steps of the load ramp.
-    pub ramp_steps: usize,
-    /// Newton–Krylov's largest linear-solve relative residual (its default when `None`).
-    pub forcing_max: Option<f64>,
-}
-
-impl SolveSettings {
-    /// The settings a scene asks for.
-    pub fn of(p: &Prepared) -> Self {
-        SolveSettings {
-            kind: p.scene.solver.kind,
-            tolerance: p.scene.solver.tolerance,
-            step_fraction: DrParams::default().step_fraction,
-            max_steps: None,
-            ramp_steps: p.scene.solver.ramp_steps,
-            forcing_max: None,
-        }
-    }
-}
-
-/// The Newton–Krylov solver for settings `s` on composition `c`.
-fn newton_krylov(c: &Composed, s: &SolveSettings) -> NewtonKrylov {
-    newton_krylov_params(s, c.load_scale)
-}
-
-fn newton_krylov_params(s: &SolveSettings, load_scale: f64) -> NewtonKrylov {
-    let defaults = NewtonKrylovParams::default();
-    NewtonKrylov::new(NewtonKrylovParams {
-        tolerance: s.tolerance / load_scale,
-        max_iterations: s.max_steps.unwrap_or(defaults.max_iterations),
-        forcing_max: s.forcing_max.unwrap_or(defaults.forcing_max),
-        forcing_active_set: s
-            .forcing_max
-            .map_or(defaults.forcing_active_set, |f| defaults.forcing_active_set.max(f)),
-        forcing_min: s.forcing_max.map_or(defaults.forcing_min, |f| defaults.forcing_min.min(f)),
-        ..defaults
-    })
-}
-
-/// Computes what the chosen solver can compute before the loads are known (the
-/// Newton–Krylov preconditioner) and keeps it in `c`; nothing for the other solvers. A
-/// preparation already in `c` that fits its loads is reused.
-pub fn prepare_solver(c: &mut Composed, s: &SolveSettings) -> Result<(), SolveError> {
-    if s.kind == SolverKind::NewtonKrylov
-        && c.preparation.as_ref().is_none_or(|p| !p.fits(&c.loads))
-    {
-        c.preparation = Some(newton_krylov(c, s).prepare(&c.model, &c.loads)?);
-    }
-    Ok(())
-}
-
-/// Solves a composed scene, returning the solution and the largest penetration any slave
-/// had before it was corrected (over all steps).
-pub fn solve_composed(
-    c: &mut Composed,
-    s: &SolveSettings,
-    observer: &mut dyn FnMut(&Progress),
-) -> Result<(Solution, f64), SolveError> {
-    let relative = s.tolerance / c.load_scale;
-    let mut max_penetration = 0.0f64;
-    let mut observe = |pr: &Progress| {
-        max_penetration = max_penetration.max(pr.contact.max_penetration);
-        observer(pr);
-    };
-    prepare_solver(c, s)?;
-    let mut none = bs_dr::NoContact;
-    let contact: &mut dyn bs_dr::Contact = match &mut c.contact {
-        Some(sc) => sc,
-        None => &mut none,
-    };
-    let solution = match s.kind {
-        SolverKind::NewtonKrylov => {
-            let prep = c.preparation.as_ref().expect("prepared above");
-            newton_krylov_params(s, c.load_scale).solve_prepared(
-                &c.model,
-                &c.loads,
-                prep,
-                contact,
-                &mut observe,
-            )
-        }
-        SolverKind::Dr => {
-            let defaults = DrParams::default();
-            DynamicRelaxation::new(DrParams {
-                tolerance: relative,
-                step_fraction: s.step_fraction,
-                max_steps: s.max_steps.unwrap_or(defaults.max_steps),
-                ramp_steps: s.ramp_steps,
-                ..defaults
-            })
-            .solve(&c.model, &c.loads, contact, &mut observe)
-        }
-        SolverKind::Newton => {
-            Newton::new(NewtonParams { tolerance: relative, ..NewtonParams::default() }).solve(
-                &c.model,
-                &c.loads,
-                contact,
-                &mut observe,
-            )
-        }
-    }?;
-    Ok((solution, max_penetration))
-}
-
-/// Contact state of a result, measured exactly (parry's BVH and the exact point–triangle
-/// projection, independent of the handler the solver used; once per solve).
-#[derive(Debug, Clone, PartialEq)]
-pub struct ContactState {
-    /// Per node: 1 if the node is a slave within the tolerance of the skull, else 0.
-    pub in_contact: Vec<f64>,
-    /// Largest distance of any slave outside the skull (0 if none).
-    pub max_penetration: f64,
-    /// Slaves outside by more than the tolerance, and the worst one (node index, distance).
-    pub outside: usize,
-    /// The slave farthest outside beyond the tolerance.
-    pub worst: Option<(usize, f64)>,
-}
-
-/// The contact state of displacements `u` with tolerance `tol` (no skull: nothing in
-/// contact, nothing outside).
-pub fn contact_state(p: &Prepared, c: &Composed, u: &[Vector3<f64>], tol: f64) -> ContactState {
-    let mut st = ContactState {
-        in_contact: vec![0.0; p.mesh.nodes.len()],
-        max_penetration: 0.0,
-        outside: 0,
-        worst: None,
-    };
-    if let Some(exact) = &c.exact {
-        let points = c.slaves.iter().map(|&i| p.mesh.nodes[i] + u[i]);
-        for (row, &i) in crate::compose::exact_gaps(exact, points).iter().zip(&c.slaves) {
-            if row.signed_distance <= tol {
-                st.in_contact[i] = 1.0;
-            }
-            if row.outside {
-                let d = -row.signed_distance;
-                st.max_penetration = st.max_penetration.max(d);
-                if d > tol {
-                    st.outside += 1;
-                    if st.worst.is_none_or(|(_, w)| d > w) {
-                        st.worst = Some((i, d));
-                    }
-                }
-            }
-        }
-    }
-    st
-}
-
-/// The last guard of a run: per node 1 if in contact (see [`ContactState`]) and the largest
-/// penetration, or an error naming the worst node when a slave ended outside the skull by
-/// more than `tol` (a contact handler that missed penetrations, e.g. without the §3.2
-/// additional lists at a sharp skull corner). Such a result is never written.
-pub fn final_contact(
-    p: &Prepared,
-    c: &Composed,
-    u: &[Vector3<f64>],
-    tol: f64,
-) -> Result<(Vec<f64>, f64), String> {
-    let st = contact_state(p, c, u, tol);
-    if let Some((i, d)) = st.worst {
-        return Err(format!(
-            "contact check failed: {} brain surface node{} ended outside the skull by more \
-             than the tolerance {tol:e}; worst: node {} by {d:.3e}. The contact handler missed \
-             penetrations; run the scene with algorithm = \"brute-force\" to confirm",
-            st.outside,
-            if st.outside == 1 { "" } else { "s" },
-            p.mesh.node_ids[i]
-        ));
-    }
-    Ok((st.in_contact, st.max_penetration))
-}
+use crate::solve::{SolveSettings, prepare_solver, solve_composed};
+use crate::verify::verify;
 
 /// The contact of a variant.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -244,8 +60,8 @@ pub enum Failure {
     Setup(String),
     /// The solver stopped with a typed error.
     Solve(SolveError),
-    /// The solver converged but the result failed the post-solve contact check.
-    Check(String),
+    /// The solver converged but the result failed verification (contact, J, equilibrium).
+    Check(crate::verify::VerifyError),
 }
 
 impl std::fmt::Display for Failure {
@@ -253,7 +69,7 @@ impl std::fmt::Display for Failure {
         match self {
             Failure::Setup(e) => write!(f, "setup: {e}"),
             Failure::Solve(e) => write!(f, "the solver stopped: {e}"),
-            Failure::Check(e) => f.write_str(e),
+            Failure::Check(e) => write!(f, "{e}"),
         }
     }
 }
@@ -291,8 +107,11 @@ pub struct Outcome {
     pub max_penetration_after: f64,
     /// Slaves on the skull (within the tolerance) at the end.
     pub nodes_in_contact: usize,
-    /// Smallest element volume ratio J of the result (≤ 0: an inverted element).
+    /// Smallest element volume ratio J of the result (> 0: verified).
     pub min_volume_ratio: f64,
+    /// Largest out-of-balance force at a free node relative to the largest reaction
+    /// (verified against [`crate::verify::equilibrium_bound`]).
+    pub equilibrium_residual: f64,
 }
 
 impl Variant {
@@ -372,7 +191,7 @@ impl Variant {
             },
         };
         let started = Instant::now();
-        let mut c = compose_with(&q, &opts).map_err(|e| Failure::Setup(e.0))?;
+        let mut c = compose_with(&q, &opts).map_err(|e| Failure::Setup(e.to_string()))?;
         let setup_seconds = started.elapsed().as_secs_f64();
         let mut settings = SolveSettings::of(&q);
         if let Some(f) = self.step_fraction {
@@ -386,14 +205,8 @@ impl Variant {
         let (solution, max_penetration_before) =
             solve_composed(&mut c, &settings, &mut |_| {}).map_err(Failure::Solve)?;
         let u = solution.displacements;
-        let (in_contact, max_penetration_after) =
-            final_contact(&q, &c, &u, settings.tolerance).map_err(Failure::Check)?;
+        let v = verify(&q, &c, &u, settings.tolerance).map_err(Failure::Check)?;
         let solve_seconds = solving.elapsed().as_secs_f64();
-        let min_volume_ratio = c
-            .model
-            .element_measures(&u)
-            .map(|m| m.volume_ratio.iter().copied().fold(f64::INFINITY, f64::min))
-            .unwrap_or(f64::NAN);
         Ok(Outcome {
             steps: solution.report.steps,
             setup_seconds,
@@ -405,9 +218,10 @@ impl Variant {
             contact_seconds: c.contact.as_ref().map_or(0.0, |sc| sc.elapsed.as_secs_f64()),
             error_estimate: solution.report.err,
             max_penetration_before,
-            max_penetration_after,
-            nodes_in_contact: in_contact.iter().filter(|&&x| x > 0.0).count(),
-            min_volume_ratio,
+            max_penetration_after: v.max_penetration_after,
+            nodes_in_contact: v.in_contact.iter().filter(|&&x| x > 0.0).count(),
+            min_volume_ratio: v.min_jacobian,
+            equilibrium_residual: v.equilibrium_residual,
             displacements: u,
         })
     }

@@ -1,0 +1,147 @@
+//! Boundary conditions: the scene's `[[boundary]]` tables resolved to per-node prescribed
+//! components. A table that prescribes nothing (an empty node set, a `GENERATE` range that
+//! matches no node, an empty displacement file) is an error naming it: a dropped boundary
+//! condition would silently give a wrong answer.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use bs_mesh::Mesh;
+
+use crate::SceneError;
+use crate::scene::Scene;
+
+/// Per node: fixed (`Some(0.0)`) or prescribed final displacement per component.
+pub type Prescribed = Vec<[Option<f64>; 3]>;
+
+/// Resolves every `[[boundary]]` of `scene` on `mesh`.
+pub fn resolve_boundaries(sp: &Path, scene: &Scene, mesh: &Mesh) -> Result<Prescribed, SceneError> {
+    let mut prescribed = vec![[None; 3]; mesh.nodes.len()];
+    let mut set = |node: usize, c: usize, v: f64, source: &str| -> Result<(), SceneError> {
+        match prescribed[node][c] {
+            Some(old) if old != v => Err(SceneError::Node {
+                scene: sp.to_path_buf(),
+                node_id: mesh.node_ids[node],
+                message: format!(
+                    "component {} is prescribed twice with different values ({old} and {v}, the \
+                     second from {source}); make the boundary sets disjoint",
+                    ["x", "y", "z"][c]
+                ),
+            }),
+            _ => {
+                prescribed[node][c] = Some(v);
+                Ok(())
+            }
+        }
+    };
+    for (i, b) in scene.boundaries.iter().enumerate() {
+        if let Some(file) = &b.displacement_file {
+            let rows = read_displacement_csv(sp, file, mesh)?;
+            if rows.is_empty() {
+                return Err(SceneError::Read {
+                    scene: sp.to_path_buf(),
+                    key: format!("[[boundary]] #{} displacement_file", i + 1),
+                    message: format!(
+                        "{}: the file prescribes no node (only a header or nothing); give one \
+                         row node_id,ux,uy,uz per prescribed node",
+                        file.display()
+                    ),
+                });
+            }
+            for (node, d) in rows {
+                for (c, v) in d.into_iter().enumerate() {
+                    set(node, c, v, &file.display().to_string())?;
+                }
+            }
+            continue;
+        }
+        let name = b.nset.as_deref().unwrap_or_default();
+        let err = |message: String| SceneError::Set {
+            scene: sp.to_path_buf(),
+            key: format!("[[boundary]] #{} nset", i + 1),
+            set: name.to_string(),
+            message,
+        };
+        let nodes = mesh.node_set(name).ok_or_else(|| {
+            err(format!(
+                "no such node set in {} (it has: {})",
+                scene.mesh.file.display(),
+                names(mesh.node_sets.keys())
+            ))
+        })?;
+        if nodes.is_empty() {
+            return Err(err(format!(
+                "the node set selects no node of {} (empty, or its ids are not in the mesh); the \
+                 boundary condition would prescribe nothing",
+                scene.mesh.file.display()
+            )));
+        }
+        let source = format!("[[boundary]] #{}", i + 1);
+        for &n in nodes {
+            if let Some(fix) = &b.fix {
+                for c in fix {
+                    set(n, c.index(), 0.0, &source)?;
+                }
+            }
+            if let Some(d) = &b.displacement {
+                for (c, v) in d.components().into_iter().enumerate() {
+                    if let Some(v) = v {
+                        set(n, c, v, &source)?;
+                    }
+                }
+            }
+        }
+    }
+    Ok(prescribed)
+}
+
+/// Reads `node_id,ux,uy,uz` rows (with a header line).
+fn read_displacement_csv(
+    sp: &Path,
+    file: &Path,
+    mesh: &Mesh,
+) -> Result<Vec<(usize, [f64; 3])>, SceneError> {
+    let f = file.display();
+    let read = |message: String| SceneError::Read {
+        scene: sp.to_path_buf(),
+        key: "[[boundary]] displacement_file".into(),
+        message,
+    };
+    let text = std::fs::read_to_string(file).map_err(|e| read(format!("{f}: {e}")))?;
+    let index: HashMap<u64, usize> =
+        mesh.node_ids.iter().enumerate().map(|(i, &id)| (id, i)).collect();
+    let mut rows = Vec::new();
+    for (l, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if l == 0 || line.is_empty() {
+            continue; // header
+        }
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        let bad = || {
+            read(format!("{f}:{}: expected node_id,ux,uy,uz with numbers, found '{line}'", l + 1))
+        };
+        if fields.len() != 4 {
+            return Err(bad());
+        }
+        let id: u64 = fields[0].parse().map_err(|_| bad())?;
+        let mut d = [0.0f64; 3];
+        for c in 0..3 {
+            d[c] = fields[c + 1].parse().map_err(|_| bad())?;
+            if !d[c].is_finite() {
+                return Err(bad());
+            }
+        }
+        let node = *index
+            .get(&id)
+            .ok_or_else(|| read(format!("{f}:{}: node {id} is not in the mesh", l + 1)))?;
+        rows.push((node, d));
+    }
+    Ok(rows)
+}
+
+/// The names of a mesh's sets, for messages.
+pub(crate) fn names<'a>(it: impl Iterator<Item = &'a String>) -> String {
+    let mut v: Vec<&str> = it.map(String::as_str).collect();
+    v.sort_unstable();
+    if v.is_empty() { "no sets".into() } else { v.join(", ") }
+}

@@ -1,0 +1,296 @@
+//! Findings of the speed-versus-accuracy study, typed end to end: the measured points
+//! ([`ChartPoint`]), their Pareto front, the cheapest configuration per accuracy target, and
+//! the advice schema ([`Findings`]) that `cargo xtask chart` writes to
+//! `data/speed-accuracy.json` and `brainshift check` reads back (embedded at build time).
+
+use serde::{Deserialize, Serialize};
+
+const DATA: &str = include_str!("../data/speed-accuracy.json");
+
+/// Accuracy targets named in the findings (mean nodal error, mm).
+pub const TARGETS: [f64; 2] = [0.1, 0.5];
+
+/// One solved (or failed) configuration.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ChartPoint {
+    /// Case name (`ellipsoid`, `mni152`).
+    pub case: String,
+    /// Legend entry the point belongs to.
+    pub series: String,
+    /// Mesh level label.
+    pub level: String,
+    /// Element technology (`t4`, `t4anp`) or CalculiX's element.
+    pub element: String,
+    /// `dr`, `newton` or `calculix`.
+    pub solver: String,
+    /// Contact handler (`none` without skull, `penalty` for CalculiX).
+    pub handler: String,
+    /// DR/Newton tolerance (mm); NaN for CalculiX.
+    pub tolerance: f64,
+    /// Nodes of the mesh.
+    pub nodes: usize,
+    /// Mean element edge of the mesh (mm).
+    pub mean_edge: f64,
+    /// Bounding-box diagonal of the mesh (mm).
+    pub diagonal: f64,
+    /// Wall time: setup and solve (s).
+    pub seconds: f64,
+    /// DR steps or Newton iterations (0 for CalculiX).
+    pub steps: usize,
+    /// Mean nodal |u − u_ref| (mm).
+    pub mean_error: f64,
+    /// Largest nodal |u − u_ref| (mm).
+    pub max_error: f64,
+    /// Mean nodal |u − u_ccx(K=10)| where that reference exists on this mesh (mm).
+    pub mean_error_ccx: Option<f64>,
+    /// Whether this point is the case's reference (error 0 by definition).
+    pub is_reference: bool,
+}
+
+impl ChartPoint {
+    /// A short name of the configuration.
+    pub fn label(&self) -> String {
+        if self.solver == "calculix" {
+            return format!("CalculiX {} ({})", self.handler, self.level);
+        }
+        format!(
+            "{} {} {} tol {:.0e}{}",
+            self.level,
+            self.element,
+            self.solver,
+            self.tolerance,
+            if self.handler == "none" { String::new() } else { format!(" {}", self.handler) }
+        )
+    }
+}
+
+/// Indices of the points on the Pareto front (no other point is both faster and more
+/// accurate), sorted by time. Reference points and CalculiX are left out: the front is of
+/// brainshift's own configurations.
+pub fn pareto_front(points: &[ChartPoint]) -> Vec<usize> {
+    let mut idx: Vec<usize> = (0..points.len())
+        .filter(|&i| {
+            let p = &points[i];
+            !p.is_reference && p.solver != "calculix" && p.seconds.is_finite()
+        })
+        .collect();
+    idx.sort_by(|&a, &b| {
+        points[a]
+            .seconds
+            .total_cmp(&points[b].seconds)
+            .then(points[a].mean_error.total_cmp(&points[b].mean_error))
+    });
+    let mut front = Vec::new();
+    let mut best = f64::INFINITY;
+    for i in idx {
+        if points[i].mean_error < best {
+            best = points[i].mean_error;
+            front.push(i);
+        }
+    }
+    front
+}
+
+/// The fastest of brainshift's configurations whose mean error is within `target`.
+pub fn cheapest(points: &[ChartPoint], target: f64) -> Option<&ChartPoint> {
+    points
+        .iter()
+        .filter(|p| !p.is_reference && p.solver != "calculix" && p.mean_error <= target)
+        .min_by(|a, b| a.seconds.total_cmp(&b.seconds))
+}
+
+/// The chart's findings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Findings {
+    /// The command that wrote them.
+    #[serde(default)]
+    pub generated_by: String,
+    /// What the targets mean.
+    #[serde(default)]
+    pub note: String,
+    /// One entry per benchmark case.
+    pub cases: Vec<CaseFindings>,
+}
+
+/// The findings of one benchmark case.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CaseFindings {
+    /// Case name.
+    pub case: String,
+    /// Mean element edge of the case's finest mesh (mm).
+    pub reference_mean_edge_mm: f64,
+    /// Bounding-box diagonal of the case's brain (mm).
+    pub diagonal_mm: f64,
+    /// Wall time of the reference solution (s).
+    #[serde(default)]
+    pub reference_seconds: f64,
+    /// The cheapest configuration per accuracy target.
+    pub targets: Vec<Target>,
+}
+
+/// The cheapest configuration that met one mean-error target.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Target {
+    /// Mean nodal error target (mm).
+    pub target_mm: f64,
+    /// Element technology (`t4`, `t4anp`).
+    pub element: String,
+    /// Solver (`newton-krylov`, `dr`); findings written before the Newton–Krylov solver
+    /// existed have none (they were DR).
+    #[serde(default = "dr")]
+    pub solver: String,
+    /// Contact handler (`none` without skull).
+    #[serde(default)]
+    pub handler: String,
+    /// Solver tolerance (mm).
+    pub tolerance_mm: f64,
+    /// Mean element edge of its mesh (mm).
+    pub mean_edge_mm: f64,
+    /// Its wall time on the benchmark machine (s).
+    pub seconds: f64,
+    /// Its measured mean error (mm).
+    pub mean_error_mm: f64,
+    /// Its largest nodal error (mm): at the rim of the prescribed patch, where each mesh
+    /// resolves the boundary of the set differently.
+    pub max_error_mm: f64,
+    /// Mesh level label (`coarse`, `default`, `fine`, …).
+    #[serde(default)]
+    pub level: String,
+}
+
+fn dr() -> String {
+    "dr".into()
+}
+
+/// The embedded findings.
+pub fn findings() -> Result<Findings, String> {
+    serde_json::from_str(DATA).map_err(|e| format!("embedded speed-accuracy findings: {e}"))
+}
+
+impl Findings {
+    /// The findings of solved cases: per case, its reference and the cheapest configuration
+    /// meeting each of [`TARGETS`]. Cases without a reference point are left out.
+    pub fn from_points(all: &[(String, Vec<ChartPoint>)]) -> Findings {
+        let cases = all
+            .iter()
+            .filter_map(|(case, points)| {
+                let r = points.iter().find(|p| p.is_reference)?;
+                let targets = TARGETS
+                    .iter()
+                    .filter_map(|&t| {
+                        cheapest(points, t).map(|p| Target {
+                            target_mm: t,
+                            element: p.element.clone(),
+                            solver: p.solver.clone(),
+                            handler: p.handler.clone(),
+                            tolerance_mm: p.tolerance,
+                            mean_edge_mm: p.mean_edge,
+                            seconds: p.seconds,
+                            mean_error_mm: p.mean_error,
+                            max_error_mm: p.max_error,
+                            level: p.level.clone(),
+                        })
+                    })
+                    .collect();
+                Some(CaseFindings {
+                    case: case.clone(),
+                    reference_mean_edge_mm: r.mean_edge,
+                    diagonal_mm: r.diagonal,
+                    reference_seconds: r.seconds,
+                    targets,
+                })
+            })
+            .collect();
+        Findings {
+            generated_by: "cargo xtask chart".into(),
+            note: "cheapest configuration meeting each mean-error target, measured against the \
+                   finest converged solution"
+                .into(),
+            cases,
+        }
+    }
+
+    /// The findings embedded in this build.
+    pub fn embedded() -> Result<Findings, String> {
+        serde_json::from_str(DATA).map_err(|e| format!("embedded speed-accuracy findings: {e}"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn point(seconds: f64, mean_error: f64) -> ChartPoint {
+        ChartPoint {
+            case: "t".into(),
+            series: "s".into(),
+            level: "l".into(),
+            element: "t4".into(),
+            solver: "dr".into(),
+            handler: "paper".into(),
+            tolerance: 1e-3,
+            nodes: 1,
+            mean_edge: 1.0,
+            diagonal: 1.0,
+            seconds,
+            steps: 1,
+            mean_error,
+            max_error: mean_error,
+            mean_error_ccx: None,
+            is_reference: false,
+        }
+    }
+
+    /// The front of a hand-made set, checked against the definition by brute force: a point
+    /// is on it iff no other point is at least as fast and strictly more accurate.
+    #[test]
+    fn pareto_front_matches_its_definition() {
+        let pts: Vec<ChartPoint> =
+            [(1.0, 0.5), (2.0, 0.6), (2.0, 0.2), (3.0, 0.2), (4.0, 0.05), (5.0, 0.3), (6.0, 0.01)]
+                .iter()
+                .map(|&(s, e)| point(s, e))
+                .collect();
+        let front = pareto_front(&pts);
+        assert_eq!(front, vec![0, 2, 4, 6]);
+        for (i, p) in pts.iter().enumerate() {
+            let dominated = pts.iter().enumerate().any(|(j, q)| {
+                j != i
+                    && q.seconds <= p.seconds
+                    && q.mean_error <= p.mean_error
+                    && (q.seconds < p.seconds || q.mean_error < p.mean_error)
+            });
+            assert_eq!(front.contains(&i), !dominated, "point {i}");
+        }
+        assert_eq!(cheapest(&pts, 0.25).map(|p| p.seconds), Some(2.0));
+        assert_eq!(cheapest(&pts, 0.001), None);
+    }
+
+    /// References and CalculiX never count as brainshift's configurations.
+    #[test]
+    fn references_and_calculix_are_not_candidates() {
+        let mut r = point(0.1, 0.0);
+        r.is_reference = true;
+        let mut c = point(0.2, 0.0);
+        c.solver = "calculix".into();
+        let pts = vec![r, c, point(1.0, 0.3)];
+        assert_eq!(pareto_front(&pts), vec![2]);
+        assert_eq!(cheapest(&pts, 0.5).map(|p| p.seconds), Some(1.0));
+    }
+
+    /// What the chart writes is what `check` reads: the findings of hand-made points
+    /// survive a JSON round trip, and each target is the cheapest point meeting it.
+    #[test]
+    fn findings_round_trip_through_json() {
+        let mut r = point(9.0, 0.0);
+        r.is_reference = true;
+        let all =
+            vec![("t".to_string(), vec![r, point(1.0, 0.4), point(3.0, 0.05), point(2.0, 0.3)])];
+        let f = Findings::from_points(&all);
+        let back: Findings = serde_json::from_str(&serde_json::to_string(&f).unwrap()).unwrap();
+        assert_eq!(back, f);
+        let t: Vec<(f64, f64)> =
+            f.cases[0].targets.iter().map(|t| (t.target_mm, t.seconds)).collect();
+        assert_eq!(t, vec![(0.1, 3.0), (0.5, 1.0)]);
+        assert_eq!(f.cases[0].reference_seconds, 9.0);
+    }
+}

@@ -1,0 +1,51 @@
+//! Brain-shift scenes as a library, between the solver crates and every front end (the
+//! `brainshift` binary, the Python bindings, `cargo xtask`).
+//!
+//! The data flow, one module per step:
+//!
+//! * [`scene`]: the scene file (TOML) and its keys — the contract users write;
+//! * [`prepare`] (with [`boundary`]): files read, sets resolved, everything checked that
+//!   can be checked without computing — a [`Prepared`] scene;
+//! * [`compose`] (with [`skull_contact`]): model, loads and contact handler, the only
+//!   place that knows both bs-dr and bs-contact;
+//! * [`gap`]: exact brain–skull gaps, the initial check;
+//! * [`solve`]: the solver a scene asks for, prepared once and driven with an observer;
+//! * [`verify`]: the result checked independently of the solver (contact, J, equilibrium);
+//! * [`run`] and [`output`]: the verified run of a scene and its three files;
+//! * [`check`]: everything `run` does before solving, with [`memory`] and [`advice`];
+//! * [`study`]: one scene solved with variations (what validation, charts and stability
+//!   maps measure) and [`findings`]: the speed-versus-accuracy results, typed end to end.
+//!
+//! Every error is a [`SceneError`] naming the file and the key, set, node or element.
+//!
+//! ```no_run
+//! use bs_scene::{Prepared, Run};
+//!
+//! let prepared = Prepared::load("fixtures/mni152/scene.toml".as_ref())?;
+//! let mut run = Run::prepare(prepared)?;
+//! let solved = run.solve(&mut |_progress| {})?;
+//! println!("max |u| = {}", solved.solution.displacements.iter().map(|d| d.norm()).fold(0.0, f64::max));
+//! # Ok::<(), bs_scene::SceneError>(())
+//! ```
+
+pub mod advice;
+pub mod boundary;
+pub mod check;
+pub mod compose;
+mod error;
+pub mod findings;
+pub mod gap;
+pub mod memory;
+pub mod output;
+pub mod prepare;
+pub mod run;
+pub mod scene;
+pub mod skull_contact;
+pub mod solve;
+pub mod study;
+pub mod verify;
+
+pub use error::SceneError;
+pub use prepare::Prepared;
+pub use run::{Run, Solved};
+pub use scene::Scene;

@@ -1,0 +1,187 @@
+//! Writing a verified result: result.vtu (displacement, in_contact; von Mises stress and J
+//! per element), displacements.csv and report.json, each written atomically (a temporary
+//! file renamed into place), so an interrupted or failed run leaves no partial file.
+
+use std::path::{Path, PathBuf};
+
+use bs_dr::DrParams;
+use bs_mesh::io::{Field, Fields, write_atomic};
+use serde::Serialize;
+
+use crate::SceneError;
+use crate::run::{Run, Solved};
+
+/// The machine-readable summary written to report.json.
+#[derive(Debug, Serialize)]
+pub struct RunReport {
+    /// Always true in a written report: a failed run writes no report.
+    pub converged: bool,
+    /// DR steps or Newton iterations.
+    pub steps: usize,
+    /// Wall time of the solver alone.
+    pub wall_seconds: f64,
+    /// Wall time of everything that depends only on mesh, materials and skull (the model's
+    /// precomputation, the contact search structures, the solver's preconditioner): what can
+    /// be computed before surgery.
+    pub prepare_seconds: f64,
+    /// Wall time from known displacements to a converged, checked result (the solver and
+    /// the final contact check).
+    pub solve_seconds: f64,
+    /// Evaluations of the internal forces.
+    pub force_evaluations: usize,
+    /// Inner linear-solver iterations (newton-krylov: GMRES; otherwise 0).
+    pub linear_iterations: usize,
+    /// Part of `wall_seconds` spent in contact enforcement and queries.
+    pub contact_seconds: f64,
+    /// Part of `wall_seconds` spent evaluating internal forces (newton-krylov; 0 for the
+    /// others, which do not time it).
+    pub force_seconds: f64,
+    /// Part of `wall_seconds` spent in the preconditioner (newton-krylov).
+    pub preconditioner_seconds: f64,
+    /// Wall time including reading, setup and writing.
+    pub total_seconds: f64,
+    /// Final error estimate (mesh length units).
+    pub error_estimate: f64,
+    /// Tolerance it met (mesh length units).
+    pub tolerance: f64,
+    /// Physical critical time step of the mesh times the step fraction, in seconds. DR uses
+    /// fictitious masses, so this is the step the explicit dynamics would need.
+    pub time_step: f64,
+    /// Slave nodes lying on the skull at the end (within the tolerance).
+    pub nodes_in_contact: usize,
+    /// Largest distance by which any slave was found outside the skull in any step, before
+    /// it was moved back (mesh length units).
+    pub max_penetration_before_correction: f64,
+    /// Largest distance of any slave outside the skull in the written result.
+    pub max_penetration_after: f64,
+    /// Smallest element volume ratio J of the result (verified > 0).
+    pub min_jacobian: f64,
+    /// Largest out-of-balance force at a free node out of contact, relative to the largest
+    /// reaction force (verified below `equilibrium_bound`).
+    pub equilibrium_residual: f64,
+    /// The bound the equilibrium residual met (from the tolerance and the load size).
+    pub equilibrium_bound: f64,
+    /// Largest nodal displacement magnitude.
+    pub max_displacement: f64,
+    /// `"newton-krylov"`, `"dr"` or `"newton"`.
+    pub solver: &'static str,
+    /// `"t4"`, `"t4anp"` or `"h8"`.
+    pub element: String,
+    /// Contact handler, or `"none"`.
+    pub algorithm: String,
+    /// Counts.
+    pub nodes: usize,
+    /// Counts.
+    pub elements: usize,
+    /// Slave (contact candidate) nodes.
+    pub slave_nodes: usize,
+    /// Threads used.
+    pub threads: usize,
+    /// Length unit of all lengths in this report.
+    pub units: &'static str,
+}
+
+/// Where the files of a run went.
+#[derive(Debug, Clone)]
+pub struct Written {
+    /// result.vtu.
+    pub vtu: PathBuf,
+    /// displacements.csv.
+    pub csv: PathBuf,
+    /// report.json.
+    pub report: PathBuf,
+}
+
+/// Timing and threading of a run that only the front end knows.
+#[derive(Debug, Clone, Copy)]
+pub struct RunContext {
+    /// Wall time from the start of the command to now (seconds).
+    pub total_seconds: f64,
+    /// Worker threads of the run.
+    pub threads: usize,
+}
+
+/// The report of a verified run.
+pub fn report(run: &Run, s: &Solved, ctx: RunContext) -> RunReport {
+    let (p, c) = (&run.prepared, &run.composed);
+    let u = &s.solution.displacements;
+    let r = &s.solution.report;
+    let (dt, _) = c.model.critical_time_step();
+    let v = &s.verification;
+    RunReport {
+        converged: true,
+        steps: r.steps,
+        wall_seconds: r.elapsed.as_secs_f64(),
+        prepare_seconds: run.prepare_seconds,
+        solve_seconds: s.solve_seconds,
+        force_evaluations: r.force_evaluations,
+        linear_iterations: r.linear_iterations,
+        contact_seconds: c.contact.as_ref().map_or(0.0, |sc| sc.elapsed.as_secs_f64()),
+        force_seconds: r.breakdown.forces.as_secs_f64(),
+        preconditioner_seconds: r.breakdown.preconditioner.as_secs_f64(),
+        total_seconds: ctx.total_seconds,
+        error_estimate: r.err,
+        tolerance: run.settings.tolerance,
+        time_step: dt * DrParams::default().step_fraction * p.scene.units.metres(),
+        nodes_in_contact: v.in_contact.iter().filter(|&&x| x > 0.0).count(),
+        max_penetration_before_correction: s.max_penetration_before,
+        max_penetration_after: v.max_penetration_after,
+        min_jacobian: v.min_jacobian,
+        equilibrium_residual: v.equilibrium_residual,
+        equilibrium_bound: v.equilibrium_bound,
+        max_displacement: u.iter().map(|d| d.norm()).fold(0.0, f64::max),
+        solver: p.scene.solver.kind.name(),
+        element: p.element.name().to_string(),
+        algorithm: p.scene.contact.as_ref().map_or("none", |c| c.algorithm.name()).to_string(),
+        nodes: p.mesh.nodes.len(),
+        elements: p.mesh.elements.len(),
+        slave_nodes: c.slaves.len(),
+        threads: ctx.threads,
+        units: p.scene.units.symbol(),
+    }
+}
+
+/// Writes the three result files of a verified run into `out` (created if missing).
+pub fn write_outputs(
+    out: &Path,
+    run: &Run,
+    s: &Solved,
+    report: &RunReport,
+) -> Result<Written, SceneError> {
+    let (p, c) = (&run.prepared, &run.composed);
+    let u = &s.solution.displacements;
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |e: &dyn std::fmt::Display| SceneError::Write { path, message: e.to_string() }
+    };
+    let measures = c.model.element_measures(u)?;
+    std::fs::create_dir_all(out).map_err(|e| io(out)(&format!("cannot create the folder: {e}")))?;
+    let fields = Fields {
+        point: vec![
+            Field::new("displacement", 3, u.iter().flat_map(|d| [d.x, d.y, d.z]).collect()),
+            Field::new("in_contact", 1, s.verification.in_contact.clone()),
+        ],
+        cell: vec![
+            Field::new("von_mises", 1, measures.von_mises),
+            Field::new("J", 1, measures.volume_ratio),
+        ],
+    };
+    let written = Written {
+        vtu: out.join("result.vtu"),
+        csv: out.join("displacements.csv"),
+        report: out.join("report.json"),
+    };
+    bs_mesh::io::write_mesh(&written.vtu, &p.mesh, &fields).map_err(|e| io(&written.vtu)(&e))?;
+    write_atomic(&written.csv, |w| {
+        writeln!(w, "node_id,ux,uy,uz")?;
+        for (id, d) in p.mesh.node_ids.iter().zip(u) {
+            writeln!(w, "{id},{:?},{:?},{:?}", d.x, d.y, d.z)?;
+        }
+        Ok(())
+    })
+    .map_err(|e| io(&written.csv)(&e))?;
+    let json = serde_json::to_string_pretty(report).map_err(|e| io(&written.report)(&e))?;
+    write_atomic(&written.report, |w| writeln!(w, "{json}"))
+        .map_err(|e| io(&written.report)(&e))?;
+    Ok(written)
+}

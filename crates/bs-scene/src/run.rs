@@ -1,0 +1,73 @@
+//! A run: a prepared scene composed, its solver prepared (everything that depends only on
+//! mesh, materials and skull: what a hospital can compute before surgery), solved, and the
+//! result verified. Front ends (the `brainshift` binary, bindings, studies) drive this and
+//! decide how to show progress; nothing here prints.
+
+use std::time::Instant;
+
+use bs_dr::{Progress, Solution};
+
+use crate::SceneError;
+use crate::compose::{Composed, compose};
+use crate::prepare::Prepared;
+use crate::solve::{SolveSettings, prepare_solver, solve_composed};
+use crate::verify::{Verification, verify};
+
+/// A scene ready to solve.
+#[derive(Debug)]
+pub struct Run {
+    /// The scene with its files read and names resolved.
+    pub prepared: Prepared,
+    /// Model, loads, contact and the solver's preparation.
+    pub composed: Composed,
+    /// How the solve is driven.
+    pub settings: SolveSettings,
+    /// Wall time of composition, the initial check and the solver's preparation (seconds).
+    pub prepare_seconds: f64,
+}
+
+/// A verified result.
+#[derive(Debug)]
+pub struct Solved {
+    /// Displacements and the solver's report.
+    pub solution: Solution,
+    /// Largest penetration any slave had before it was corrected (over all steps).
+    pub max_penetration_before: f64,
+    /// The independent checks the result passed.
+    pub verification: Verification,
+    /// Wall time from known displacements to the verified result (seconds).
+    pub solve_seconds: f64,
+}
+
+impl Run {
+    /// Composes `prepared`, refuses it if the memory estimate exceeds what the machine has
+    /// or a brain node starts outside the skull, and prepares the solver.
+    pub fn prepare(prepared: Prepared) -> Result<Run, SceneError> {
+        crate::memory::require_fits(&prepared, crate::memory::available())?;
+        let started = Instant::now();
+        let mut composed = compose(&prepared)?;
+        composed.check_initial_gap(&prepared)?;
+        let settings = SolveSettings::of(&prepared);
+        prepare_solver(&mut composed, &settings)?;
+        Ok(Run { prepared, composed, settings, prepare_seconds: started.elapsed().as_secs_f64() })
+    }
+
+    /// Solves and verifies; `observer` sees every step (DR) or iteration (Newton solvers).
+    pub fn solve(&mut self, observer: &mut dyn FnMut(&Progress)) -> Result<Solved, SceneError> {
+        let started = Instant::now();
+        let (solution, max_penetration_before) =
+            solve_composed(&mut self.composed, &self.settings, observer)?;
+        let verification = verify(
+            &self.prepared,
+            &self.composed,
+            &solution.displacements,
+            self.settings.tolerance,
+        )?;
+        Ok(Solved {
+            solution,
+            max_penetration_before,
+            verification,
+            solve_seconds: started.elapsed().as_secs_f64(),
+        })
+    }
+}

@@ -1,0 +1,127 @@
+//! Driving a solve: the scene's `[solver]` settings become a bs-dr solver, its preparation
+//! (what can be computed before the loads are known) is kept in the composition, and the
+//! solve runs with a progress observer.
+
+use bs_dr::{
+    DrParams, DynamicRelaxation, Newton, NewtonKrylov, NewtonKrylovParams, NewtonParams, Progress,
+    Solution, SolveError, Solver,
+};
+
+use crate::compose::Composed;
+use crate::prepare::Prepared;
+use crate::scene::SolverKind;
+
+/// How a solve is driven: the scene's `[solver]` table plus the step fraction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolveSettings {
+    /// DR or Newton.
+    pub kind: SolverKind,
+    /// Error-estimate tolerance in mesh length units.
+    pub tolerance: f64,
+    /// DR time step as a fraction of the critical step (bs-dr's default 0.8).
+    pub step_fraction: f64,
+    /// DR step budget (bs-dr's default when `None`).
+    pub max_steps: Option<usize>,
+    /// DR steps of the load ramp.
+    pub ramp_steps: usize,
+    /// Newton–Krylov's largest linear-solve relative residual (its default when `None`).
+    pub forcing_max: Option<f64>,
+}
+
+impl SolveSettings {
+    /// The settings a scene asks for.
+    pub fn of(p: &Prepared) -> Self {
+        SolveSettings {
+            kind: p.scene.solver.kind,
+            tolerance: p.scene.solver.tolerance,
+            step_fraction: DrParams::default().step_fraction,
+            max_steps: None,
+            ramp_steps: p.scene.solver.ramp_steps,
+            forcing_max: None,
+        }
+    }
+}
+
+/// The Newton–Krylov solver for settings `s` on composition `c`.
+fn newton_krylov(c: &Composed, s: &SolveSettings) -> NewtonKrylov {
+    newton_krylov_params(s, c.load_scale)
+}
+
+fn newton_krylov_params(s: &SolveSettings, load_scale: f64) -> NewtonKrylov {
+    let defaults = NewtonKrylovParams::default();
+    NewtonKrylov::new(NewtonKrylovParams {
+        tolerance: s.tolerance / load_scale,
+        max_iterations: s.max_steps.unwrap_or(defaults.max_iterations),
+        forcing_max: s.forcing_max.unwrap_or(defaults.forcing_max),
+        forcing_active_set: s
+            .forcing_max
+            .map_or(defaults.forcing_active_set, |f| defaults.forcing_active_set.max(f)),
+        forcing_min: s.forcing_max.map_or(defaults.forcing_min, |f| defaults.forcing_min.min(f)),
+        ..defaults
+    })
+}
+
+/// Computes what the chosen solver can compute before the loads are known (the
+/// Newton–Krylov preconditioner) and keeps it in `c`; nothing for the other solvers. A
+/// preparation already in `c` that fits its loads is reused.
+pub fn prepare_solver(c: &mut Composed, s: &SolveSettings) -> Result<(), SolveError> {
+    if s.kind == SolverKind::NewtonKrylov
+        && c.preparation.as_ref().is_none_or(|p| !p.fits(&c.loads))
+    {
+        c.preparation = Some(newton_krylov(c, s).prepare(&c.model, &c.loads)?);
+    }
+    Ok(())
+}
+
+/// Solves a composed scene, returning the solution and the largest penetration any slave
+/// had before it was corrected (over all steps).
+pub fn solve_composed(
+    c: &mut Composed,
+    s: &SolveSettings,
+    observer: &mut dyn FnMut(&Progress),
+) -> Result<(Solution, f64), SolveError> {
+    let relative = s.tolerance / c.load_scale;
+    let mut max_penetration = 0.0f64;
+    let mut observe = |pr: &Progress| {
+        max_penetration = max_penetration.max(pr.contact.max_penetration);
+        observer(pr);
+    };
+    prepare_solver(c, s)?;
+    let mut none = bs_dr::NoContact;
+    let contact: &mut dyn bs_dr::Contact = match &mut c.contact {
+        Some(sc) => sc,
+        None => &mut none,
+    };
+    let solution = match s.kind {
+        SolverKind::NewtonKrylov => {
+            let prep = c.preparation.as_ref().expect("prepared above");
+            newton_krylov_params(s, c.load_scale).solve_prepared(
+                &c.model,
+                &c.loads,
+                prep,
+                contact,
+                &mut observe,
+            )
+        }
+        SolverKind::Dr => {
+            let defaults = DrParams::default();
+            DynamicRelaxation::new(DrParams {
+                tolerance: relative,
+                step_fraction: s.step_fraction,
+                max_steps: s.max_steps.unwrap_or(defaults.max_steps),
+                ramp_steps: s.ramp_steps,
+                ..defaults
+            })
+            .solve(&c.model, &c.loads, contact, &mut observe)
+        }
+        SolverKind::Newton => {
+            Newton::new(NewtonParams { tolerance: relative, ..NewtonParams::default() }).solve(
+                &c.model,
+                &c.loads,
+                contact,
+                &mut observe,
+            )
+        }
+    }?;
+    Ok((solution, max_penetration))
+}

@@ -1,0 +1,235 @@
+//! Verification of a result before it is written, by checks independent of the solver's own
+//! stopping rule: no brain node outside the skull, every element with J > 0, and
+//! equilibrium at the free nodes. A result that fails one is an error naming the worst node
+//! or element, and nothing is written.
+
+use nalgebra::Vector3;
+
+use crate::compose::Composed;
+use crate::gap::exact_gaps;
+use crate::prepare::Prepared;
+
+/// Contact state of a result, measured exactly (parry's BVH and the exact point–triangle
+/// projection, independent of the handler the solver used; once per solve).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContactState {
+    /// Per node: 1 if the node is a slave within the tolerance of the skull, else 0.
+    pub in_contact: Vec<f64>,
+    /// Largest distance of any slave outside the skull (0 if none).
+    pub max_penetration: f64,
+    /// Slaves outside by more than the tolerance, and the worst one (node index, distance).
+    pub outside: usize,
+    /// The slave farthest outside beyond the tolerance.
+    pub worst: Option<(usize, f64)>,
+}
+
+/// The contact state of displacements `u` with tolerance `tol` (no skull: nothing in
+/// contact, nothing outside).
+pub fn contact_state(p: &Prepared, c: &Composed, u: &[Vector3<f64>], tol: f64) -> ContactState {
+    let mut st = ContactState {
+        in_contact: vec![0.0; p.mesh.nodes.len()],
+        max_penetration: 0.0,
+        outside: 0,
+        worst: None,
+    };
+    if let Some(exact) = &c.exact {
+        let points = c.slaves.iter().map(|&i| p.mesh.nodes[i] + u[i]);
+        for (row, &i) in exact_gaps(exact, points).iter().zip(&c.slaves) {
+            if row.signed_distance <= tol {
+                st.in_contact[i] = 1.0;
+            }
+            if row.outside {
+                let d = -row.signed_distance;
+                st.max_penetration = st.max_penetration.max(d);
+                if d > tol {
+                    st.outside += 1;
+                    if st.worst.is_none_or(|(_, w)| d > w) {
+                        st.worst = Some((i, d));
+                    }
+                }
+            }
+        }
+    }
+    st
+}
+
+/// Why a converged result is refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum VerifyError {
+    /// Brain surface nodes ended outside the skull.
+    #[error(
+        "contact check failed: {count} brain surface node{} ended outside the skull by more \
+         than the tolerance {tolerance:e}; worst: node {node_id} by {distance:.3e}. The contact \
+         handler missed penetrations; run the scene with algorithm = \"brute-force\" to confirm",
+        if *count == 1 { "" } else { "s" }
+    )]
+    OutsideSkull {
+        /// How many slaves are outside beyond the tolerance.
+        count: usize,
+        /// The worst one's id.
+        node_id: u64,
+        /// How far outside it is (mesh length units).
+        distance: f64,
+        /// The tolerance (mesh length units).
+        tolerance: f64,
+    },
+    /// An element of the result is inverted or flat.
+    #[error(
+        "result check failed: element {element_id} has J = {jacobian:.3e} <= 0 (inverted) in \
+         the converged result; the load is too large for this mesh: refine it under the load \
+         or reduce the displacement"
+    )]
+    Inverted {
+        /// The element's id.
+        element_id: u64,
+        /// Its volume ratio.
+        jacobian: f64,
+    },
+    /// The result is not in equilibrium.
+    #[error(
+        "result check failed: the out-of-balance force at node {node_id} is {residual:.3e} of \
+         the largest reaction force (bound {bound:.1e} for the tolerance); the solver stopped \
+         before equilibrium: tighten [solver] tolerance or use kind = \"dr\""
+    )]
+    Equilibrium {
+        /// The worst free node's id.
+        node_id: u64,
+        /// Its out-of-balance force relative to the largest reaction.
+        residual: f64,
+        /// The bound it exceeded.
+        bound: f64,
+    },
+}
+
+impl VerifyError {
+    /// A short stable name of the error kind.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            VerifyError::OutsideSkull { .. } => "ContactCheck",
+            VerifyError::Inverted { .. } => "InvertedResult",
+            VerifyError::Equilibrium { .. } => "Equilibrium",
+        }
+    }
+}
+
+/// The figures of a verified result (they go into report.json).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Verification {
+    /// Per node: 1 if the node is a slave within the tolerance of the skull, else 0.
+    pub in_contact: Vec<f64>,
+    /// Largest distance of any slave outside the skull (mesh length units).
+    pub max_penetration_after: f64,
+    /// Smallest element volume ratio J (> 0 in a verified result).
+    pub min_jacobian: f64,
+    /// Largest out-of-balance force at a free node out of contact, relative to the largest
+    /// reaction force (prescribed and contact nodes).
+    pub equilibrium_residual: f64,
+    /// The bound `equilibrium_residual` met.
+    pub equilibrium_bound: f64,
+}
+
+/// The largest relative out-of-balance force a result may keep at tolerance `tol` with
+/// loads of size `load_scale` (both mesh length units).
+///
+/// A displacement error `δ` leaves a residual of about `k δ` at a node of stiffness `k`, and
+/// the largest reaction is about `k_max u_max`; for a converged result (`δ ≤ tol`) the ratio
+/// is bounded by `(k_max / k_min) tol / u_max`. The nodal stiffness ratio of the meshes
+/// here (quality-checked tetrahedra, one material) stays under 100 (measured: the largest
+/// ratio of a node's diagonal stiffness to the smallest, fixtures/mni152 default, ~60), and
+/// the solvers' stopping rules are conservative, so `100 tol / load_scale` (capped at 1) is
+/// the bound: a result that fails it did not converge whatever the solver reported.
+pub fn equilibrium_bound(tol: f64, load_scale: f64) -> f64 {
+    (EQUILIBRIUM_FACTOR * tol / load_scale).min(1.0)
+}
+
+const EQUILIBRIUM_FACTOR: f64 = 100.0;
+
+/// Verifies displacements `u` of a solve with tolerance `tol`: the exact contact state,
+/// the smallest J and the equilibrium residual. A result that fails one check is an error
+/// naming the worst node or element; such a result is never written.
+pub fn verify(
+    p: &Prepared,
+    c: &Composed,
+    u: &[Vector3<f64>],
+    tol: f64,
+) -> Result<Verification, VerifyError> {
+    let st = contact_state(p, c, u, tol);
+    if let Some((i, d)) = st.worst {
+        return Err(VerifyError::OutsideSkull {
+            count: st.outside,
+            node_id: p.mesh.node_ids[i],
+            distance: d,
+            tolerance: tol,
+        });
+    }
+    let (min_jacobian, worst) = smallest_jacobian(c, u);
+    if !(min_jacobian > 0.0) {
+        return Err(VerifyError::Inverted {
+            element_id: p.mesh.element_ids[worst],
+            jacobian: min_jacobian,
+        });
+    }
+    let (equilibrium_residual, node) = out_of_balance(c, u, &st.in_contact);
+    let equilibrium_bound = equilibrium_bound(tol, c.load_scale);
+    if !(equilibrium_residual <= equilibrium_bound) {
+        return Err(VerifyError::Equilibrium {
+            node_id: p.mesh.node_ids[node],
+            residual: equilibrium_residual,
+            bound: equilibrium_bound,
+        });
+    }
+    Ok(Verification {
+        in_contact: st.in_contact,
+        max_penetration_after: st.max_penetration,
+        min_jacobian,
+        equilibrium_residual,
+        equilibrium_bound,
+    })
+}
+
+/// The smallest element volume ratio and its element (NaN and element 0 when the model
+/// cannot measure `u`).
+fn smallest_jacobian(c: &Composed, u: &[Vector3<f64>]) -> (f64, usize) {
+    match c.model.element_measures(u) {
+        Ok(m) => m
+            .volume_ratio
+            .iter()
+            .copied()
+            .enumerate()
+            .fold((f64::INFINITY, 0), |(j, e), (k, x)| if x < j { (x, k) } else { (j, e) }),
+        Err(_) => (f64::NAN, 0),
+    }
+}
+
+/// The largest internal force at a free component of a node out of contact, relative to the
+/// largest force at a constrained component or a node in contact (the reactions), and that
+/// node. No reaction at all (nothing loaded): zero.
+fn out_of_balance(c: &Composed, u: &[Vector3<f64>], in_contact: &[f64]) -> (f64, usize) {
+    let mut ws = c.model.workspace();
+    let mut f = vec![Vector3::zeros(); c.model.node_count()];
+    if c.model.internal_forces_into(u, &mut ws, &mut f).is_err() {
+        return (f64::INFINITY, 0); // an inverted element: refused before this by J
+    }
+    let mut reaction = 0.0f64;
+    let mut worst = (0.0f64, 0usize);
+    for (n, fi) in f.iter().enumerate() {
+        let mut free = Vector3::zeros();
+        let mut fixed = Vector3::zeros();
+        for k in 0..3 {
+            if c.loads.is_constrained(n, k) {
+                fixed[k] = fi[k];
+            } else {
+                free[k] = fi[k];
+            }
+        }
+        if in_contact[n] > 0.0 {
+            reaction = reaction.max(fi.norm());
+            continue;
+        }
+        reaction = reaction.max(fixed.norm());
+        if free.norm() > worst.0 {
+            worst = (free.norm(), n);
+        }
+    }
+    if reaction > 0.0 { (worst.0 / reaction, worst.1) } else { (0.0, worst.1) }
+}
