@@ -81,8 +81,8 @@ pub fn check(metadata: &Value) -> Result<usize, String> {
             }
             edges += 1;
             let kind = d["kind"].as_str().unwrap_or("normal");
-            let dev_ok = kind == "dev"
-                && ALLOWED_DEV.iter().any(|(n, a)| *n == name && a.contains(&dep));
+            let dev_ok =
+                kind == "dev" && ALLOWED_DEV.iter().any(|(n, a)| *n == name && a.contains(&dep));
             if !allowed.contains(&dep) && !dev_ok {
                 problems.push(format!(
                     "forbidden dependency {name} -> {dep} ({kind}): {}",

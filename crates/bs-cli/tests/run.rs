@@ -152,6 +152,27 @@ fn bad_scenes_fail_with_their_expected_message() {
     }
 }
 
+/// Zero is not a thread count: refused with a message, nothing written.
+#[test]
+fn zero_threads_are_refused() {
+    let dir = TempDir::new("zero-threads");
+    let scene = root().join("fixtures/cube/uniaxial-t4.toml");
+    let out = dir.0.join("out");
+    let o = brainshift(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--threads",
+        "0",
+        "--quiet",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("--threads 0: give at least 1 worker thread"), "{err}");
+    assert!(!out.exists(), "nothing may be written");
+}
+
 fn cube_mesh(element: &str) -> bs_mesh::Mesh {
     let file = if element == "h8" { "cube-h8.msh" } else { "cube-t4.msh" };
     bs_mesh::io::read_mesh(&root().join("fixtures/basic").join(file)).unwrap()
