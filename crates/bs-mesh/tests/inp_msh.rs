@@ -630,3 +630,23 @@ fn inp_writer_layout_and_rejections() {
     bad.node_sets.insert("A,B".into(), vec![0]);
     assert!(inp::write(&mut Vec::new(), &bad).is_err());
 }
+
+/// Text written by Windows editors may start with a UTF-8 byte-order mark: it is skipped and
+/// the line numbers of errors are unchanged.
+#[test]
+fn byte_order_mark_is_skipped_by_inp_and_msh() {
+    const BOM: &[u8] = b"\xEF\xBB\xBF";
+    for name in ["cube-t4.inp", "cube-t4.msh", "cube-t4-v22.msh"] {
+        let path = fixture_path(name);
+        let with_bom = [BOM, fixture(name).as_slice()].concat();
+        let r = if name.ends_with(".inp") {
+            inp::read(&with_bom, &path)
+        } else {
+            msh::read(&with_bom, &path)
+        };
+        assert_eq!(r.unwrap_or_else(|e| panic!("{e}")), read_fixture(name), "{name}");
+    }
+    let deck = [BOM, b"*NODE\n1, 0, 0, 0\n2, x, 0, 0\n".as_slice()].concat();
+    let e = inp::read(&deck, Path::new("t.inp")).unwrap_err();
+    assert_eq!(e.location, Location::Line(3));
+}

@@ -332,12 +332,14 @@ pub(crate) struct Lines<'a> {
 }
 
 impl<'a> Lines<'a> {
-    /// Decodes `bytes` as UTF-8 (error with the byte offset otherwise).
+    /// Decodes `bytes` as UTF-8 (error with the byte offset otherwise), skipping a leading
+    /// UTF-8 byte-order mark as Windows editors write it.
     pub(crate) fn new(bytes: &'a [u8], file: &'a Path) -> Result<Self, ParseError> {
-        let text = std::str::from_utf8(bytes).map_err(|e| {
+        let skipped = bytes.len() - strip_bom(bytes).len();
+        let text = std::str::from_utf8(&bytes[skipped..]).map_err(|e| {
             ParseError::new(
                 file,
-                Location::Byte(e.valid_up_to()),
+                Location::Byte(skipped + e.valid_up_to()),
                 "the file is not valid UTF-8 text",
             )
         })?;
@@ -374,6 +376,14 @@ impl<'a> Lines<'a> {
     pub(crate) fn file(&self) -> &'a Path {
         self.file
     }
+}
+
+/// The UTF-8 byte-order mark some editors put at the start of text files.
+pub(crate) const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
+
+/// `bytes` without a leading UTF-8 byte-order mark (unchanged when there is none).
+pub(crate) fn strip_bom(bytes: &[u8]) -> &[u8] {
+    bytes.strip_prefix(UTF8_BOM).unwrap_or(bytes)
 }
 
 /// Parses one whitespace- or comma-separated field as `T`, with an error naming the line and

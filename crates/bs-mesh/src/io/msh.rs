@@ -88,7 +88,7 @@ fn unsupported_3d(t: u32, what: &str) -> String {
 /// that binary files (not UTF-8) get the right error.
 fn sniff(bytes: &[u8], file: &Path) -> Result<Version, ParseError> {
     let err = |line, msg: String| ParseError::new(file, Location::Line(line), msg);
-    let mut rest = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
+    let mut rest = super::strip_bom(bytes);
     let mut line_no = 0;
     let mut next_line = || -> Option<&[u8]> {
         loop {

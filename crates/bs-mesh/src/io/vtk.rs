@@ -261,7 +261,9 @@ enum Section {
 
 /// Parses a legacy VTK unstructured grid (ASCII or big-endian BINARY).
 pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
-    let mut c = Cursor { b: bytes, pos: 0, line: 1, file, binary: false };
+    // A UTF-8 byte-order mark before the header is skipped (byte offsets stay file offsets).
+    let bom = bytes.len() - super::strip_bom(bytes).len();
+    let mut c = Cursor { b: bytes, pos: bom, line: 1, file, binary: false };
     let first = c.rest_of_line();
     if !first.trim_start().starts_with("# vtk DataFile Version") {
         return Err(c.err_line(
