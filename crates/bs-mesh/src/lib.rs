@@ -12,7 +12,7 @@
 //!   out-of-range or duplicate nodes, unused nodes.
 //! * [`TetLocator`]: point location in a tetrahedral mesh, to carry a nodal field onto the
 //!   nodes of another mesh ([`transfer`]).
-//! * [`io`]: readers and writers for Abaqus `.inp`, Gmsh `.msh` (2.2 and 4.1 ASCII), VTK
+//! * [`io`]: readers and writers for Abaqus `.inp`, Gmsh `.msh` (2.2 and 4.1, ASCII or binary), VTK
 //!   legacy, VTU, STL, OBJ and OFF. Every parse error names the file and line (or byte
 //!   offset) and what was expected.
 //!

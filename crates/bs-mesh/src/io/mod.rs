@@ -1,6 +1,6 @@
 //! Mesh file formats.
 //!
-//! Volume meshes: Abaqus `.inp`, Gmsh `.msh` (4.1 and 2.2 ASCII), VTK legacy `.vtk` and
+//! Volume meshes: Abaqus `.inp`, Gmsh `.msh` (4.1 and 2.2, ASCII or binary), VTK legacy `.vtk` and
 //! VTU `.vtu` unstructured grids. Surfaces: STL (ASCII and binary), OBJ, OFF.
 //!
 //! Every parser works on bytes already in memory (so tests can feed truncated and mutated
@@ -18,6 +18,7 @@ use crate::{Mesh, TriSurface};
 
 pub mod inp;
 pub mod msh;
+mod msh_binary;
 pub mod obj;
 pub mod off;
 pub mod stl;
@@ -93,7 +94,7 @@ pub enum MeshIoError {
 pub enum Format {
     /// Abaqus input deck (`.inp`).
     Inp,
-    /// Gmsh mesh (`.msh`, versions 4.1 and 2.2 ASCII).
+    /// Gmsh mesh (`.msh`, versions 4.1 and 2.2, ASCII or binary).
     Msh,
     /// VTK legacy unstructured grid (`.vtk`).
     Vtk,
