@@ -222,10 +222,28 @@ pub(super) struct State {
     pub(super) seen_elements: bool,
 }
 
-/// A capacity hint from a count in the file, bounded by the file size so that a corrupt
-/// count cannot exhaust memory.
-fn cap(n: usize, bytes: usize) -> usize {
-    n.min(bytes / 4)
+/// A count from line `ln` of items taking at least `min_bytes` bytes each: refused when the
+/// whole file (`size` bytes) cannot hold them, so that a corrupt count never drives an
+/// allocation (the count is then also a safe capacity).
+fn count(
+    lines: &Lines<'_>,
+    ln: usize,
+    n: usize,
+    min_bytes: usize,
+    size: usize,
+    what: &str,
+) -> Result<usize, ParseError> {
+    let need = n as u128 * min_bytes as u128;
+    if need > size as u128 {
+        return Err(lines.error(
+            ln,
+            format!(
+                "the file declares {n} {what}, which need at least {need} bytes, but it has \
+                 {size} bytes; the count is corrupt or the file is truncated"
+            ),
+        ));
+    }
+    Ok(n)
 }
 
 /// "on line 7" or "at byte 120": where an earlier definition was.
@@ -461,7 +479,8 @@ fn read_point(
 fn read_nodes_v2(lines: &mut Lines<'_>, st: &mut State, size: usize) -> Result<(), ParseError> {
     let (ln, t) = next_nonempty(lines, "the number of nodes")?;
     let n: usize = parse_field(lines.file(), ln, t, "the number of nodes")?;
-    st.nodes.reserve(cap(n, size));
+    // "1 0 0 0\n"
+    st.nodes.reserve(count(lines, ln, n, 8, size, "nodes")?);
     for _ in 0..n {
         let (ln, t) = next_nonempty(lines, "a node line 'tag x y z'")?;
         let mut f = t.split_ascii_whitespace();
@@ -477,7 +496,10 @@ fn read_nodes_v4(lines: &mut Lines<'_>, st: &mut State, size: usize) -> Result<(
     let mut f = t.split_ascii_whitespace();
     let blocks: usize = field(lines, ln, &mut f, "the number of entity blocks")?;
     let n: usize = field(lines, ln, &mut f, "the number of nodes")?;
-    st.nodes.reserve(cap(n, size));
+    // A tag line "1\n" and a coordinate line "0 0 0\n".
+    st.nodes.reserve(count(lines, ln, n, 8, size, "nodes")?);
+    // "0 1 0 0\n"
+    count(lines, ln, blocks, 8, size, "node entity blocks")?;
     let mut tags: Vec<(u64, usize)> = Vec::new();
     for _ in 0..blocks {
         let (ln, t) = next_nonempty(lines, "a node block header 'dim tag parametric count'")?;
@@ -485,10 +507,10 @@ fn read_nodes_v4(lines: &mut Lines<'_>, st: &mut State, size: usize) -> Result<(
         let _dim: u8 = field(lines, ln, &mut f, "an entity dimension")?;
         let _entity: i64 = field(lines, ln, &mut f, "an entity tag")?;
         let _param: u8 = field(lines, ln, &mut f, "the parametric flag (0 or 1)")?;
-        let count: usize = field(lines, ln, &mut f, "the number of nodes in the block")?;
+        let n: usize = field(lines, ln, &mut f, "the number of nodes in the block")?;
         tags.clear();
-        tags.reserve(cap(count, size));
-        for _ in 0..count {
+        tags.reserve(count(lines, ln, n, 8, size, "nodes in the block")?);
+        for _ in 0..n {
             let (ln, t) = next_nonempty(lines, "a node tag")?;
             tags.push((parse_field(lines.file(), ln, t, "a node tag (integer)")?, ln));
         }
@@ -565,7 +587,8 @@ pub(super) fn build_element(kind_type: u32, idx: &[usize]) -> Element {
 fn read_elements_v2(lines: &mut Lines<'_>, st: &mut State, size: usize) -> Result<(), ParseError> {
     let (ln, t) = next_nonempty(lines, "the number of elements")?;
     let n: usize = parse_field(lines.file(), ln, t, "the number of elements")?;
-    st.elements.reserve(cap(n, size));
+    // "1 15 0 1\n"
+    st.elements.reserve(count(lines, ln, n, 9, size, "elements")?);
     let mut idx: Vec<usize> = Vec::with_capacity(32);
     for _ in 0..n {
         let (ln, t) = next_nonempty(lines, "an element line 'tag type ntags tags… nodes…'")?;
@@ -630,7 +653,10 @@ fn read_elements_v4(lines: &mut Lines<'_>, st: &mut State, size: usize) -> Resul
     let mut f = t.split_ascii_whitespace();
     let blocks: usize = field(lines, ln, &mut f, "the number of entity blocks")?;
     let n: usize = field(lines, ln, &mut f, "the number of elements")?;
-    st.elements.reserve(cap(n, size));
+    // "1 1\n"
+    st.elements.reserve(count(lines, ln, n, 4, size, "elements")?);
+    // "0 1 15 1\n"
+    count(lines, ln, blocks, 9, size, "element entity blocks")?;
     let mut idx: Vec<usize> = Vec::with_capacity(32);
     for _ in 0..blocks {
         let (ln, t) = next_nonempty(lines, "an element block header 'dim tag type count'")?;
@@ -638,7 +664,8 @@ fn read_elements_v4(lines: &mut Lines<'_>, st: &mut State, size: usize) -> Resul
         let block_dim: u8 = field(lines, ln, &mut f, "an entity dimension (0 to 3)")?;
         let entity: i64 = field(lines, ln, &mut f, "an entity tag")?;
         let ty: u32 = field(lines, ln, &mut f, "an element type")?;
-        let count: usize = field(lines, ln, &mut f, "the number of elements in the block")?;
+        let n: usize = field(lines, ln, &mut f, "the number of elements in the block")?;
+        let n = count(lines, ln, n, 4, size, "elements in the block")?;
         if block_dim > 3 {
             return Err(lines.error(ln, format!("expected a dimension 0 to 3, found {block_dim}")));
         }
@@ -658,7 +685,7 @@ fn read_elements_v4(lines: &mut Lines<'_>, st: &mut State, size: usize) -> Resul
         }
         let first_element = st.elements.len();
         let first_node = st.lower_nodes.len();
-        for _ in 0..count {
+        for _ in 0..n {
             let (ln, t) = next_nonempty(lines, "an element line 'tag node-tags…'")?;
             let mut f = t.split_ascii_whitespace();
             let id: u64 = field(lines, ln, &mut f, "an element tag (integer)")?;

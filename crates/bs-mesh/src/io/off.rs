@@ -47,7 +47,8 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<TriSurface, ParseError> {
     let nv = count("the vertex count")?;
     let nf = count("the face count")?;
     // Each vertex line needs at least 6 bytes ("0 0 0\n"), each face 8: cap preallocation by
-    // what the file can hold so that a corrupted count cannot allocate huge buffers.
+    // what the file can hold so that a corrupted count cannot allocate huge buffers (such a
+    // count then fails at the end of the file, naming the count).
     let mut s = TriSurface {
         vertices: Vec::with_capacity(nv.min(bytes.len() / 6)),
         triangles: Vec::with_capacity(nf.min(bytes.len() / 8)),

@@ -109,9 +109,22 @@ impl<'a> Cursor<'a> {
             )
         })?;
         if !self.binary {
-            // Each value needs at least two bytes (digit and separator): cap preallocation by
-            // what the rest of the file can hold.
-            let cap = n.min((self.b.len() - self.pos) / 2 + 1);
+            // Each value needs at least two bytes (digit and separator, none after the last):
+            // a count the rest of the file cannot hold is refused before allocating or reading
+            // on into the next section.
+            let left = self.b.len() - self.pos;
+            let room = left / 2 + 1;
+            if n > room {
+                return Err(self.err_line(
+                    line,
+                    format!(
+                        "unexpected end of file: {what} has room for at most {room} of its {n} \
+                         values in the {left} bytes left (2 bytes each at least); the count is \
+                         corrupt or the file is truncated"
+                    ),
+                ));
+            }
+            let cap = n;
             let mut data = if float {
                 Data::F(Vec::with_capacity(cap))
             } else {
