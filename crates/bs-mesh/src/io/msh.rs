@@ -2,7 +2,7 @@
 //!
 //! * The version and file type come from `$MeshFormat`; versions 1, 3 and 4.0 are rejected
 //!   with the fix. Binary files (file type 1, either byte order) are read by
-//!   [`msh_binary`](super::msh_binary) into the same [`Mesh`] as the ASCII file of the same
+//!   `msh_binary.rs` into the same [`Mesh`] as the ASCII file of the same
 //!   mesh; their errors name byte offsets instead of lines.
 //! * `$PhysicalNames`, `$Entities` (4.1: which physical groups each entity belongs to),
 //!   `$Nodes` and `$Elements` are read; every other section (`$Periodic`, `$NodeData`, …) is
