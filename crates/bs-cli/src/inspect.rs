@@ -72,6 +72,9 @@ struct SurfaceInfo {
     components: usize,
     enclosed_volume: f64,
     degenerate_triangles: usize,
+    /// Pairs of triangles that cross each other, and one of them.
+    self_intersections: usize,
+    self_intersection_example: Option<[usize; 2]>,
 }
 
 impl SurfaceInfo {
@@ -94,6 +97,8 @@ impl SurfaceInfo {
             components: c.components,
             enclosed_volume: c.signed_volume,
             degenerate_triangles: c.degenerate_triangles,
+            self_intersections: c.self_intersections.len(),
+            self_intersection_example: c.self_intersections.first().map(|p| [p.first, p.second]),
         }
     }
 
@@ -113,6 +118,13 @@ impl SurfaceInfo {
         }
         if self.degenerate_triangles > 0 {
             p.push(format!("{what} has {} zero-area triangles; remesh", self.degenerate_triangles));
+        }
+        if let Some([a, b]) = self.self_intersection_example {
+            p.push(format!(
+                "{what} intersects itself: {} pairs of triangles cross (e.g. triangles {a} and \
+                 {b}); repair or remesh it into one closed shell that does not cross itself",
+                self.self_intersections
+            ));
         }
         p
     }
@@ -247,7 +259,7 @@ fn text(r: &Report) -> String {
     if let Some(s) = &r.surface {
         let _ = writeln!(
             o,
-            "  surface ({}): {} vertices, {} triangles, {}, {}, {} (Euler characteristic {}, {} component{}, enclosed volume {:.6})",
+            "  surface ({}): {} vertices, {} triangles, {}, {}, {}{} (Euler characteristic {}, {} component{}, enclosed volume {:.6})",
             s.source,
             s.vertices,
             s.triangles,
@@ -258,6 +270,7 @@ fn text(r: &Report) -> String {
                 "inward" => "oriented INWARD",
                 _ => "orientation undefined",
             },
+            if s.self_intersections > 0 { ", SELF-INTERSECTING" } else { "" },
             s.euler_characteristic,
             s.components,
             if s.components == 1 { "" } else { "s" },

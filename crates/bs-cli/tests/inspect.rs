@@ -167,3 +167,42 @@ fn an_open_surface_is_reported_invalid() {
     assert_eq!(r["surface"]["closed"], false);
     assert_eq!(r["valid"], false);
 }
+
+#[test]
+fn two_overlapping_shells_are_reported_as_self_intersecting() {
+    // Two octahedra (circumradius 1) half a radius apart, written as one OFF surface: each
+    // shell is closed, manifold and outward, but they cross.
+    let verts = |dx: f64| {
+        [
+            [1.0, 0.0, 0.0],
+            [-1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, -1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 0.0, -1.0],
+        ]
+        .map(|p| format!("{} {} {}\n", p[0] + dx, p[1], p[2]))
+        .concat()
+    };
+    let faces = |o: usize| {
+        [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]]
+            .map(|t| format!("3 {} {} {}\n", t[0] + o, t[1] + o, t[2] + o))
+            .concat()
+    };
+    let one = format!("OFF\n6 8 0\n{}{}", verts(0.0), faces(0));
+    let f = TempFile::new("one.off", one.as_bytes());
+    let r = inspect_json(&f.0);
+    assert_eq!(r["valid"], true, "{r}");
+    assert_eq!(r["surface"]["self_intersections"], 0);
+    let two = format!("OFF\n12 16 0\n{}{}{}{}", verts(0.0), verts(0.5), faces(0), faces(6));
+    let f = TempFile::new("two.off", two.as_bytes());
+    let out = brainshift(&["inspect", "--json", f.0.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    let r: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(r["surface"]["closed"], true);
+    assert!(r["surface"]["self_intersections"].as_u64().unwrap() > 0, "{r}");
+    let problems = r["problems"].to_string();
+    assert!(problems.contains("intersects itself") && problems.contains("remesh"), "{problems}");
+    let out = brainshift(&["inspect", f.0.to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("SELF-INTERSECTING"));
+}

@@ -10,9 +10,12 @@
 //!   volume node indices.
 //! * [`validate`](Mesh::validate): typed [`MeshError`]s for inverted or degenerate elements,
 //!   out-of-range or duplicate nodes, unused nodes.
+//! * [`TriSurface::self_intersections`]: triangle pairs of a surface that cross each other
+//!   (a bucket grid over a robust triangle–triangle test), part of the skull check
+//!   [`TriSurface::require_closed_outward`].
 //! * [`TetLocator`]: point location in a tetrahedral mesh, to carry a nodal field onto the
 //!   nodes of another mesh ([`transfer`]).
-//! * [`io`]: readers and writers for Abaqus `.inp`, Gmsh `.msh` (2.2 and 4.1 ASCII), VTK
+//! * [`io`]: readers and writers for Abaqus `.inp`, Gmsh `.msh` (2.2 and 4.1, ASCII or binary), VTK
 //!   legacy, VTU, STL, OBJ and OFF. Every parse error names the file and line (or byte
 //!   offset) and what was expected.
 //!
@@ -23,6 +26,7 @@ pub mod io;
 mod locate;
 mod mesh;
 pub mod quality;
+pub mod self_intersection;
 pub mod structured;
 mod surface;
 mod validate;
@@ -31,5 +35,6 @@ pub use boundary::BoundarySurface;
 pub use locate::{LocateError, Location, TetLocator, transfer};
 pub use mesh::{Element, ElementKind, HEX_REFERENCE, Mesh};
 pub use nalgebra::{Point3, Vector3};
+pub use self_intersection::SelfIntersection;
 pub use surface::{Edge, SurfaceCheck, SurfaceError, SurfaceTopology, TriSurface};
 pub use validate::{MeshError, ValidationReport};

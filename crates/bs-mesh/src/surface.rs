@@ -4,6 +4,8 @@ use std::collections::HashMap;
 
 use nalgebra::{Point3, Vector3};
 
+use crate::SelfIntersection;
+
 /// A triangle surface mesh. Triangles are counter-clockwise seen from outside when the
 /// surface is outward oriented.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -97,6 +99,9 @@ pub struct SurfaceCheck {
     pub misoriented_edges: usize,
     /// Triangles with (numerically) zero area.
     pub degenerate_triangles: usize,
+    /// Pairs of triangles that cross or overlap beyond a shared vertex or edge (see
+    /// [`TriSurface::self_intersections`]); empty for a valid skull.
+    pub self_intersections: Vec<SelfIntersection>,
     /// Vertices used by no triangle.
     pub unused_vertices: usize,
     /// Connected components (by shared edges).
@@ -172,6 +177,26 @@ pub enum SurfaceError {
         /// One misoriented edge.
         example: [usize; 2],
     },
+    /// A triangle with zero area: a repeated vertex or three collinear vertices.
+    #[error(
+        "triangle {triangle} is degenerate: vertices {}, {}, {} {}, zero area ({count} such \
+         triangles); remove zero-area triangles and remesh or repair the surface (e.g. MeshLab \
+         'Remove Zero Area Faces' or meshfix)",
+        vertices[0], vertices[1], vertices[2],
+        if vertices[0] == vertices[1] || vertices[1] == vertices[2] || vertices[0] == vertices[2] {
+            "repeat a vertex"
+        } else {
+            "are collinear"
+        }
+    )]
+    Degenerate {
+        /// The first degenerate triangle.
+        triangle: usize,
+        /// Its vertex indices.
+        vertices: [usize; 3],
+        /// Number of degenerate triangles.
+        count: usize,
+    },
     /// Consistently oriented, but the normals point inward.
     #[error(
         "the surface is oriented inward (enclosed volume {volume:.6e} is negative); flip every \
@@ -180,6 +205,20 @@ pub enum SurfaceError {
     Inward {
         /// The (negative) enclosed volume.
         volume: f64,
+    },
+    /// Triangles cross each other: the surface intersects itself or holds overlapping shells.
+    #[error(
+        "the surface intersects itself: {count} pairs of triangles cross or overlap (e.g. \
+         triangles {} and {}); a skull must be one closed shell that does not cross itself: \
+         repair or remesh it (e.g. MeshLab 'Select Self Intersecting Faces', meshfix or \
+         pymeshfix) and keep a single shell where two overlap",
+        example.first, example.second
+    )]
+    SelfIntersecting {
+        /// Number of intersecting pairs.
+        count: usize,
+        /// One intersecting pair.
+        example: SelfIntersection,
     },
 }
 
@@ -353,17 +392,36 @@ impl TriSurface {
         Ok(topo)
     }
 
-    /// Runs every check and counts what it finds.
-    pub fn check(&self) -> Result<SurfaceCheck, SurfaceError> {
-        let topo = self.topology()?;
+    /// Triangles with zero area: a repeated vertex index, or an area below `1e-14·d²` where
+    /// `d` is the diagonal of the bounding box (collinear vertices up to rounding).
+    ///
+    /// Indices must be in range (see [`TriSurface::topology`]).
+    pub fn degenerate_triangles(&self) -> Vec<usize> {
+        let tol = self.zero_area_tolerance();
+        (0..self.triangles.len()).filter(|&t| self.is_degenerate(t, tol)).collect()
+    }
+
+    /// The area below which a triangle counts as zero: `1e-14·d²`, `d` the bounding-box
+    /// diagonal.
+    pub(crate) fn zero_area_tolerance(&self) -> f64 {
         let scale = self
             .bounding_box()
             .map(|(lo, hi)| (hi - lo).norm())
             .filter(|d| *d > 0.0)
             .unwrap_or(1.0);
-        let degenerate_triangles = (0..self.triangles.len())
-            .filter(|&t| 0.5 * self.area_normal(t).norm() <= 1e-14 * scale * scale)
-            .count();
+        1e-14 * scale * scale
+    }
+
+    /// Triangle `t` (indices in range) repeats a vertex or has an area of at most `tol`.
+    pub(crate) fn is_degenerate(&self, t: usize, tol: f64) -> bool {
+        let [a, b, c] = self.triangles[t];
+        a == b || b == c || a == c || 0.5 * self.area_normal(t).norm() <= tol
+    }
+
+    /// Runs every check and counts what it finds.
+    pub fn check(&self) -> Result<SurfaceCheck, SurfaceError> {
+        let topo = self.topology()?;
+        let degenerate_triangles = self.degenerate_triangles().len();
         let used = self.vertices.len() - topo.unused_vertices.len();
         Ok(SurfaceCheck {
             vertices: self.vertices.len(),
@@ -374,6 +432,7 @@ impl TriSurface {
             non_manifold_vertices: topo.non_manifold_vertices.len(),
             misoriented_edges: topo.misoriented_edges.len(),
             degenerate_triangles,
+            self_intersections: self.self_intersections(),
             unused_vertices: topo.unused_vertices.len(),
             components: components(self.triangles.len(), &topo),
             euler_characteristic: used as i64 - topo.edges.len() as i64
@@ -382,13 +441,23 @@ impl TriSurface {
         })
     }
 
-    /// Requires a closed, manifold, consistently and outward-oriented surface (what a skull
-    /// must be) and returns its topology; otherwise the first problem with its fix.
+    /// Requires a closed, manifold, consistently and outward-oriented surface without
+    /// zero-area triangles that does not intersect itself (what a skull must be) and returns
+    /// its topology; otherwise the first problem with its fix.
     pub fn require_closed_outward(&self) -> Result<SurfaceTopology, SurfaceError> {
         if self.triangles.is_empty() {
             return Err(SurfaceError::Empty);
         }
         let topo = self.topology()?;
+        // First: a repeated vertex would otherwise show up as a bogus open edge (v, v).
+        let degenerate = self.degenerate_triangles();
+        if let Some(&triangle) = degenerate.first() {
+            return Err(SurfaceError::Degenerate {
+                triangle,
+                vertices: self.triangles[triangle],
+                count: degenerate.len(),
+            });
+        }
         if let Some(&e) = topo.boundary_edges.first() {
             return Err(SurfaceError::Open {
                 count: topo.boundary_edges.len(),
@@ -414,6 +483,10 @@ impl TriSurface {
         let volume = self.signed_volume();
         if volume <= 0.0 {
             return Err(SurfaceError::Inward { volume });
+        }
+        let crossing = self.self_intersections();
+        if let Some(&example) = crossing.first() {
+            return Err(SurfaceError::SelfIntersecting { count: crossing.len(), example });
         }
         Ok(topo)
     }
@@ -576,6 +649,43 @@ pub(crate) mod tests {
             s.require_closed_outward(),
             Err(SurfaceError::NonManifold { example: 0, .. })
         ));
+    }
+
+    #[test]
+    fn degenerate_triangles_are_named_not_reported_as_holes() {
+        // A repeated vertex index: the old check saw the edge (0, 0) as a hole.
+        let mut s = octahedron();
+        s.triangles.push([0, 0, 2]);
+        let e = s.require_closed_outward().unwrap_err();
+        assert_eq!(e, SurfaceError::Degenerate { triangle: 8, vertices: [0, 0, 2], count: 1 });
+        let msg = e.to_string();
+        assert!(
+            msg.starts_with(
+                "triangle 8 is degenerate: vertices 0, 0, 2 repeat a vertex, zero area"
+            ),
+            "{msg}"
+        );
+        assert!(msg.contains("remesh"), "{msg}");
+        // Three collinear vertices: split the edge 0–2 at its midpoint into a sliver.
+        let mut s = octahedron();
+        s.vertices.push(Point3::new(0.5, 0.5, 0.0));
+        // Triangles [0, 2, 4] and [2, 0, 5] use edge 0–2; route both through vertex 6.
+        s.triangles[0] = [0, 6, 4];
+        s.triangles.push([6, 2, 4]);
+        s.triangles[4] = [2, 6, 5];
+        s.triangles.push([6, 0, 5]);
+        assert!(s.require_closed_outward().is_ok());
+        s.triangles.push([0, 6, 2]);
+        s.triangles.push([0, 2, 6]);
+        assert_eq!(s.degenerate_triangles(), [10, 11]);
+        let e = s.require_closed_outward().unwrap_err();
+        assert!(
+            e.to_string().starts_with(
+                "triangle 10 is degenerate: vertices 0, 6, 2 are collinear, zero area (2 such"
+            ),
+            "{e}"
+        );
+        assert_eq!(s.check().unwrap().degenerate_triangles, 2);
     }
 
     #[test]

@@ -304,10 +304,11 @@ fn msh22_repeated_element_joins_second_group() {
 
 #[test]
 fn msh_errors_name_line_and_fix() {
+    // Binary files are read (tests/msh_binary.rs); one without sections lacks $Nodes.
     let e = msh_str("$MeshFormat\n4.1 1 8\n\u{1}\0\0\0\n$EndMeshFormat\n").unwrap_err();
-    assert_eq!(e.location, Location::Line(2));
-    assert!(e.to_string().contains("save as ASCII"), "{e}");
-    assert!(e.to_string().contains("Mesh.Binary=0"), "{e}");
+    assert_eq!(e.location, Location::File);
+    assert!(e.to_string().contains("no $Nodes"), "{e}");
+    err_at(msh_str("$MeshFormat\n4.1 2 8\n$EndMeshFormat\n"), 2, &["file-type 0 (ASCII) or 1"]);
     err_at(msh_str("$MeshFormat\n4.0 0 8\n$EndMeshFormat\n"), 2, &["4.0", "4.1 or 2.2"]);
     err_at(msh_str("hello\n"), 1, &["$MeshFormat"]);
     let tet10 = format!(
@@ -629,4 +630,24 @@ fn inp_writer_layout_and_rejections() {
     let mut bad = m;
     bad.node_sets.insert("A,B".into(), vec![0]);
     assert!(inp::write(&mut Vec::new(), &bad).is_err());
+}
+
+/// Text written by Windows editors may start with a UTF-8 byte-order mark: it is skipped and
+/// the line numbers of errors are unchanged.
+#[test]
+fn byte_order_mark_is_skipped_by_inp_and_msh() {
+    const BOM: &[u8] = b"\xEF\xBB\xBF";
+    for name in ["cube-t4.inp", "cube-t4.msh", "cube-t4-v22.msh"] {
+        let path = fixture_path(name);
+        let with_bom = [BOM, fixture(name).as_slice()].concat();
+        let r = if name.ends_with(".inp") {
+            inp::read(&with_bom, &path)
+        } else {
+            msh::read(&with_bom, &path)
+        };
+        assert_eq!(r.unwrap_or_else(|e| panic!("{e}")), read_fixture(name), "{name}");
+    }
+    let deck = [BOM, b"*NODE\n1, 0, 0, 0\n2, x, 0, 0\n".as_slice()].concat();
+    let e = inp::read(&deck, Path::new("t.inp")).unwrap_err();
+    assert_eq!(e.location, Location::Line(3));
 }

@@ -1,6 +1,6 @@
 //! Mesh file formats.
 //!
-//! Volume meshes: Abaqus `.inp`, Gmsh `.msh` (4.1 and 2.2 ASCII), VTK legacy `.vtk` and
+//! Volume meshes: Abaqus `.inp`, Gmsh `.msh` (4.1 and 2.2, ASCII or binary), VTK legacy `.vtk` and
 //! VTU `.vtu` unstructured grids. Surfaces: STL (ASCII and binary), OBJ, OFF.
 //!
 //! Every parser works on bytes already in memory (so tests can feed truncated and mutated
@@ -18,6 +18,7 @@ use crate::{Mesh, TriSurface};
 
 pub mod inp;
 pub mod msh;
+mod msh_binary;
 pub mod obj;
 pub mod off;
 pub mod stl;
@@ -93,7 +94,7 @@ pub enum MeshIoError {
 pub enum Format {
     /// Abaqus input deck (`.inp`).
     Inp,
-    /// Gmsh mesh (`.msh`, versions 4.1 and 2.2 ASCII).
+    /// Gmsh mesh (`.msh`, versions 4.1 and 2.2, ASCII or binary).
     Msh,
     /// VTK legacy unstructured grid (`.vtk`).
     Vtk,
@@ -332,12 +333,14 @@ pub(crate) struct Lines<'a> {
 }
 
 impl<'a> Lines<'a> {
-    /// Decodes `bytes` as UTF-8 (error with the byte offset otherwise).
+    /// Decodes `bytes` as UTF-8 (error with the byte offset otherwise), skipping a leading
+    /// UTF-8 byte-order mark as Windows editors write it.
     pub(crate) fn new(bytes: &'a [u8], file: &'a Path) -> Result<Self, ParseError> {
-        let text = std::str::from_utf8(bytes).map_err(|e| {
+        let skipped = bytes.len() - strip_bom(bytes).len();
+        let text = std::str::from_utf8(&bytes[skipped..]).map_err(|e| {
             ParseError::new(
                 file,
-                Location::Byte(e.valid_up_to()),
+                Location::Byte(skipped + e.valid_up_to()),
                 "the file is not valid UTF-8 text",
             )
         })?;
@@ -374,6 +377,14 @@ impl<'a> Lines<'a> {
     pub(crate) fn file(&self) -> &'a Path {
         self.file
     }
+}
+
+/// The UTF-8 byte-order mark some editors put at the start of text files.
+pub(crate) const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
+
+/// `bytes` without a leading UTF-8 byte-order mark (unchanged when there is none).
+pub(crate) fn strip_bom(bytes: &[u8]) -> &[u8] {
+    bytes.strip_prefix(UTF8_BOM).unwrap_or(bytes)
 }
 
 /// Parses one whitespace- or comma-separated field as `T`, with an error naming the line and

@@ -1,7 +1,9 @@
-//! Gmsh meshes (`.msh`), ASCII versions 4.1 and 2.2 (2.0 and 2.1 read as 2.2).
+//! Gmsh meshes (`.msh`), versions 4.1 and 2.2 (2.0 and 2.1 read as 2.2), ASCII or binary.
 //!
-//! * The version comes from `$MeshFormat`; binary files are rejected with the fix (save as
-//!   ASCII), as are versions 1, 3 and 4.0.
+//! * The version and file type come from `$MeshFormat`; versions 1, 3 and 4.0 are rejected
+//!   with the fix. Binary files (file type 1, either byte order) are read by
+//!   `msh_binary.rs` into the same [`Mesh`] as the ASCII file of the same
+//!   mesh; their errors name byte offsets instead of lines.
 //! * `$PhysicalNames`, `$Entities` (4.1: which physical groups each entity belongs to),
 //!   `$Nodes` and `$Elements` are read; every other section (`$Periodic`, `$NodeData`, …) is
 //!   skipped. `$Nodes` must come before `$Elements` (gmsh always writes it so). Partitioned
@@ -32,13 +34,13 @@ use crate::{Element, Mesh};
 
 /// The supported file layouts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Version {
+pub(super) enum Version {
     V2,
     V4,
 }
 
 /// Dimension, node count and description of the gmsh element types brainshift knows.
-fn element_type(t: u32) -> Option<(u8, usize, &'static str)> {
+pub(super) fn element_type(t: u32) -> Option<(u8, usize, &'static str)> {
     Some(match t {
         1 => (1, 2, "2-node line"),
         2 => (2, 3, "3-node triangle"),
@@ -75,7 +77,7 @@ fn element_type(t: u32) -> Option<(u8, usize, &'static str)> {
     })
 }
 
-fn unsupported_3d(t: u32, what: &str) -> String {
+pub(super) fn unsupported_3d(t: u32, what: &str) -> String {
     format!(
         "gmsh element type {t} ({what}) is not supported: brainshift solves linear tetrahedra \
          (type 4) and hexahedra (type 5) only; remesh with first-order tets, e.g. `gmsh \
@@ -84,11 +86,25 @@ fn unsupported_3d(t: u32, what: &str) -> String {
     )
 }
 
+/// What the `$MeshFormat` header says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct Header {
+    /// File layout version.
+    pub(super) version: Version,
+    /// File type 1 (binary) rather than 0 (ASCII).
+    pub(super) binary: bool,
+    /// The data-size field: bytes of a `size_t` in binary 4.1 files (4 or 8).
+    pub(super) data_size: usize,
+    /// Byte offset just past the header line (where a binary file's endianness int starts).
+    pub(super) end: usize,
+}
+
 /// Reads the version and file type from the `$MeshFormat` header straight from the bytes, so
-/// that binary files (not UTF-8) get the right error.
-fn sniff(bytes: &[u8], file: &Path) -> Result<Version, ParseError> {
+/// that binary files (not UTF-8) are recognised before any text decoding.
+fn sniff(bytes: &[u8], file: &Path) -> Result<Header, ParseError> {
     let err = |line, msg: String| ParseError::new(file, Location::Line(line), msg);
-    let mut rest = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
+    let mut rest = super::strip_bom(bytes);
+    let total = bytes.len();
     let mut line_no = 0;
     let mut next_line = || -> Option<&[u8]> {
         loop {
@@ -115,83 +131,137 @@ fn sniff(bytes: &[u8], file: &Path) -> Result<Version, ParseError> {
     }
     let header = next_line();
     let ln = line_no;
+    let end = total - rest.len();
     let header = header.and_then(|h| std::str::from_utf8(h).ok()).ok_or_else(|| {
         err(ln, "expected 'version file-type data-size' (e.g. '4.1 0 8') after $MeshFormat".into())
     })?;
     let mut f = header.split_ascii_whitespace();
     let version = f.next().unwrap_or("");
     let file_type = f.next().unwrap_or("");
-    if file_type != "0" {
-        let msg = if file_type == "1" {
-            "this .msh file is binary; save as ASCII: `gmsh mesh.msh -save -format msh22 -o \
-             ascii.msh` or set Mesh.Binary=0"
-                .to_string()
-        } else {
-            format!("expected file-type 0 (ASCII) in '{}'", snippet(header))
-        };
-        return Err(err(ln, msg));
-    }
-    match version {
-        "4.1" => Ok(Version::V4),
-        "2" | "2.0" | "2.1" | "2.2" => Ok(Version::V2),
-        v => Err(err(
-            ln,
-            format!(
-                "gmsh format version '{}' is not supported; save as 4.1 or 2.2 ASCII (`gmsh \
+    let binary = match file_type {
+        "0" => false,
+        "1" => true,
+        _ => {
+            let msg = format!(
+                "expected file-type 0 (ASCII) or 1 (binary) in '{}' (format 'version file-type \
+                 data-size')",
+                snippet(header)
+            );
+            return Err(err(ln, msg));
+        }
+    };
+    let data_size = match f.next().map(str::parse::<usize>) {
+        Some(Ok(n @ (4 | 8))) => n,
+        _ if !binary => 8,
+        _ => {
+            return Err(err(
+                ln,
+                format!(
+                    "expected data-size 4 or 8 (bytes of size_t) in '{}'; re-save the binary \
+                     file with gmsh on a 32- or 64-bit machine",
+                    snippet(header)
+                ),
+            ));
+        }
+    };
+    let version = match version {
+        "4.1" => Version::V4,
+        "2" | "2.0" | "2.1" | "2.2" => Version::V2,
+        v => {
+            return Err(err(
+                ln,
+                format!(
+                    "gmsh format version '{}' is not supported; save as 4.1 or 2.2 ASCII (`gmsh \
                  mesh.msh -save -format msh41 -o new.msh`)",
-                snippet(v)
-            ),
-        )),
-    }
+                    snippet(v)
+                ),
+            ));
+        }
+    };
+    Ok(Header { version, binary, data_size, end })
 }
 
 /// Members of one physical group `(dim, tag)`.
 #[derive(Debug, Default)]
-struct Group {
-    elements: Vec<usize>,
-    nodes: Vec<usize>,
+pub(super) struct Group {
+    pub(super) elements: Vec<usize>,
+    pub(super) nodes: Vec<usize>,
 }
 
 /// A 4.1 element block, resolved to physical groups once the whole file is read.
 #[derive(Debug)]
-struct Block {
-    dim: u8,
-    entity: i64,
+pub(super) struct Block {
+    pub(super) dim: u8,
+    pub(super) entity: i64,
     /// Element index range (3D blocks).
-    elements: std::ops::Range<usize>,
+    pub(super) elements: std::ops::Range<usize>,
     /// Range into `State::lower_nodes` (0D–2D blocks).
-    nodes: std::ops::Range<usize>,
+    pub(super) nodes: std::ops::Range<usize>,
 }
 
+/// Everything read so far; shared by the ASCII and the binary reader so that both build the
+/// mesh and its sets the same way ([`finish`]).
 #[derive(Debug, Default)]
-struct State {
-    nodes: Vec<Point3<f64>>,
-    node_ids: Vec<u64>,
-    node_lines: Vec<usize>,
-    node_map: HashMap<u64, usize>,
-    elements: Vec<Element>,
-    element_ids: Vec<u64>,
-    element_lines: Vec<usize>,
-    element_map: HashMap<u64, usize>,
-    physical_names: HashMap<(u8, i64), String>,
+pub(super) struct State {
+    pub(super) nodes: Vec<Point3<f64>>,
+    pub(super) node_ids: Vec<u64>,
+    /// Where each node was defined (line or byte offset), for duplicate-tag errors.
+    pub(super) node_locs: Vec<Location>,
+    pub(super) node_map: HashMap<u64, usize>,
+    pub(super) elements: Vec<Element>,
+    pub(super) element_ids: Vec<u64>,
+    pub(super) element_locs: Vec<Location>,
+    pub(super) element_map: HashMap<u64, usize>,
+    pub(super) physical_names: HashMap<(u8, i64), String>,
     /// 4.1: physical tags of each entity `(dim, tag)`.
-    entities: HashMap<(u8, i64), Vec<i64>>,
-    groups: BTreeMap<(u8, i64), Group>,
-    blocks: Vec<Block>,
-    lower_nodes: Vec<usize>,
-    seen_nodes: bool,
-    seen_elements: bool,
+    pub(super) entities: HashMap<(u8, i64), Vec<i64>>,
+    pub(super) groups: BTreeMap<(u8, i64), Group>,
+    pub(super) blocks: Vec<Block>,
+    pub(super) lower_nodes: Vec<usize>,
+    pub(super) seen_nodes: bool,
+    pub(super) seen_elements: bool,
 }
 
-/// A capacity hint from a count in the file, bounded by the file size so that a corrupt
-/// count cannot exhaust memory.
-fn cap(n: usize, bytes: usize) -> usize {
-    n.min(bytes / 4)
+/// A count from line `ln` of items taking at least `min_bytes` bytes each: refused when the
+/// whole file (`size` bytes) cannot hold them, so that a corrupt count never drives an
+/// allocation (the count is then also a safe capacity).
+fn count(
+    lines: &Lines<'_>,
+    ln: usize,
+    n: usize,
+    min_bytes: usize,
+    size: usize,
+    what: &str,
+) -> Result<usize, ParseError> {
+    let need = n as u128 * min_bytes as u128;
+    if need > size as u128 {
+        return Err(lines.error(
+            ln,
+            format!(
+                "the file declares {n} {what}, which need at least {need} bytes, but it has \
+                 {size} bytes; the count is corrupt or the file is truncated"
+            ),
+        ));
+    }
+    Ok(n)
 }
 
-/// Parses a gmsh `.msh` file (4.1 or 2.2 ASCII). See the [module docs](self).
+/// "on line 7" or "at byte 120": where an earlier definition was.
+fn describe(loc: Location) -> String {
+    match loc {
+        Location::Line(l) => format!("on line {l}"),
+        Location::Byte(b) => format!("at byte {b}"),
+        Location::File => "earlier in the file".into(),
+    }
+}
+
+/// Parses a gmsh `.msh` file (4.1 or 2.2, ASCII or binary). See the [module docs](self).
 pub fn read(bytes: &[u8], file: &Path) -> Result<Mesh, ParseError> {
-    let version = sniff(bytes, file)?;
+    let header = sniff(bytes, file)?;
+    if header.binary {
+        return super::msh_binary::read(bytes, file, header);
+    }
+    let version = header.version;
     let mut lines = Lines::new(bytes, file)?;
     let mut st = State::default();
     // $MeshFormat, header line, $EndMeshFormat (sniff checked the first two).
@@ -254,6 +324,11 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<Mesh, ParseError> {
             }
         }
     }
+    complete(st, file)
+}
+
+/// The mesh, once the whole file was read; an error when a required section was missing.
+pub(super) fn complete(st: State, file: &Path) -> Result<Mesh, ParseError> {
     if !st.seen_nodes {
         return Err(ParseError::new(file, Location::File, "no $Nodes section found"));
     }
@@ -302,20 +377,32 @@ fn read_physical_names(lines: &mut Lines<'_>, st: &mut State) -> Result<(), Pars
     let n: usize = parse_field(lines.file(), ln, t, "the number of physical names")?;
     for _ in 0..n {
         let (ln, t) = next_nonempty(lines, "a physical name line 'dim tag \"name\"'")?;
-        let mut f = t.split_ascii_whitespace();
-        let dim: u8 = field(lines, ln, &mut f, "a dimension (0 to 3)")?;
-        let tag: i64 = field(lines, ln, &mut f, "a physical tag")?;
-        if dim > 3 {
-            return Err(lines.error(ln, format!("expected a dimension 0 to 3, found {dim}")));
-        }
-        // The name is the rest of the line, in double quotes (it may hold spaces).
-        let rest = t.find('"').map(|i| &t[i..]).unwrap_or("");
-        let name = rest.strip_prefix('"').and_then(|r| r.strip_suffix('"')).ok_or_else(|| {
-            lines.error(ln, format!("expected 'dim tag \"name\"', found '{}'", snippet(t)))
-        })?;
-        st.physical_names.insert((dim, tag), name.to_string());
+        let (key, name) = physical_name(t).map_err(|m| lines.error(ln, m))?;
+        st.physical_names.insert(key, name);
     }
     expect_end(lines, "$EndPhysicalNames")
+}
+
+/// Parses a `$PhysicalNames` entry `dim tag "name"` (ASCII in binary files too).
+pub(super) fn physical_name(t: &str) -> Result<((u8, i64), String), String> {
+    let mut f = t.split_ascii_whitespace();
+    let mut next =
+        |what: &str| f.next().ok_or_else(|| format!("expected {what}, found the end of the line"));
+    let dim = next("a dimension (0 to 3)")?;
+    let dim: u8 =
+        dim.parse().map_err(|_| format!("expected a dimension (0 to 3), found '{dim}'"))?;
+    let tag = next("a physical tag")?;
+    let tag: i64 = tag.parse().map_err(|_| format!("expected a physical tag, found '{tag}'"))?;
+    if dim > 3 {
+        return Err(format!("expected a dimension 0 to 3, found {dim}"));
+    }
+    // The name is the rest of the line, in double quotes (it may hold spaces).
+    let rest = t.find('"').map(|i| &t[i..]).unwrap_or("");
+    let name = rest
+        .strip_prefix('"')
+        .and_then(|r| r.strip_suffix('"'))
+        .ok_or_else(|| format!("expected 'dim tag \"name\"', found '{}'", snippet(t)))?;
+    Ok(((dim, tag), name.to_string()))
 }
 
 fn read_entities(lines: &mut Lines<'_>, st: &mut State) -> Result<(), ParseError> {
@@ -346,19 +433,23 @@ fn read_entities(lines: &mut Lines<'_>, st: &mut State) -> Result<(), ParseError
     expect_end(lines, "$EndEntities")
 }
 
-fn add_node(
-    lines: &Lines<'_>,
+/// Adds node `id` defined at `at`; a repeated tag is an error naming both places.
+pub(super) fn add_node(
+    file: &Path,
     st: &mut State,
     id: u64,
     p: Point3<f64>,
-    ln: usize,
+    at: Location,
 ) -> Result<(), ParseError> {
     let idx = st.nodes.len();
     match st.node_map.entry(id) {
         Entry::Occupied(o) => {
-            let first = st.node_lines[*o.get()];
-            return Err(lines
-                .error(ln, format!("duplicate node tag {id}: already defined on line {first}")));
+            let first = describe(st.node_locs[*o.get()]);
+            return Err(ParseError::new(
+                file,
+                at,
+                format!("duplicate node tag {id}: already defined {first}"),
+            ));
         }
         Entry::Vacant(v) => {
             v.insert(idx);
@@ -366,7 +457,7 @@ fn add_node(
     }
     st.nodes.push(p);
     st.node_ids.push(id);
-    st.node_lines.push(ln);
+    st.node_locs.push(at);
     Ok(())
 }
 
@@ -388,13 +479,14 @@ fn read_point(
 fn read_nodes_v2(lines: &mut Lines<'_>, st: &mut State, size: usize) -> Result<(), ParseError> {
     let (ln, t) = next_nonempty(lines, "the number of nodes")?;
     let n: usize = parse_field(lines.file(), ln, t, "the number of nodes")?;
-    st.nodes.reserve(cap(n, size));
+    // "1 0 0 0\n"
+    st.nodes.reserve(count(lines, ln, n, 8, size, "nodes")?);
     for _ in 0..n {
         let (ln, t) = next_nonempty(lines, "a node line 'tag x y z'")?;
         let mut f = t.split_ascii_whitespace();
         let id: u64 = field(lines, ln, &mut f, "a node tag (integer)")?;
         let p = read_point(lines, ln, &mut f)?;
-        add_node(lines, st, id, p, ln)?;
+        add_node(lines.file(), st, id, p, Location::Line(ln))?;
     }
     expect_end(lines, "$EndNodes")
 }
@@ -404,7 +496,10 @@ fn read_nodes_v4(lines: &mut Lines<'_>, st: &mut State, size: usize) -> Result<(
     let mut f = t.split_ascii_whitespace();
     let blocks: usize = field(lines, ln, &mut f, "the number of entity blocks")?;
     let n: usize = field(lines, ln, &mut f, "the number of nodes")?;
-    st.nodes.reserve(cap(n, size));
+    // A tag line "1\n" and a coordinate line "0 0 0\n".
+    st.nodes.reserve(count(lines, ln, n, 8, size, "nodes")?);
+    // "0 1 0 0\n"
+    count(lines, ln, blocks, 8, size, "node entity blocks")?;
     let mut tags: Vec<(u64, usize)> = Vec::new();
     for _ in 0..blocks {
         let (ln, t) = next_nonempty(lines, "a node block header 'dim tag parametric count'")?;
@@ -412,42 +507,47 @@ fn read_nodes_v4(lines: &mut Lines<'_>, st: &mut State, size: usize) -> Result<(
         let _dim: u8 = field(lines, ln, &mut f, "an entity dimension")?;
         let _entity: i64 = field(lines, ln, &mut f, "an entity tag")?;
         let _param: u8 = field(lines, ln, &mut f, "the parametric flag (0 or 1)")?;
-        let count: usize = field(lines, ln, &mut f, "the number of nodes in the block")?;
+        let n: usize = field(lines, ln, &mut f, "the number of nodes in the block")?;
         tags.clear();
-        tags.reserve(cap(count, size));
-        for _ in 0..count {
+        tags.reserve(count(lines, ln, n, 8, size, "nodes in the block")?);
+        for _ in 0..n {
             let (ln, t) = next_nonempty(lines, "a node tag")?;
             tags.push((parse_field(lines.file(), ln, t, "a node tag (integer)")?, ln));
         }
         for &(id, tag_ln) in &tags {
             let (ln, t) = next_nonempty(lines, "node coordinates 'x y z'")?;
             let p = read_point(lines, ln, &mut t.split_ascii_whitespace())?;
-            add_node(lines, st, id, p, tag_ln)?;
+            add_node(lines.file(), st, id, p, Location::Line(tag_ln))?;
         }
     }
     expect_end(lines, "$EndNodes")
 }
 
-fn node_index(
-    lines: &Lines<'_>,
+/// The index of node tag `nid` used by element `el` (defined at `at`).
+pub(super) fn node_index(
+    file: &Path,
     st: &State,
-    ln: usize,
+    at: Location,
     el: u64,
     nid: u64,
 ) -> Result<usize, ParseError> {
     st.node_map.get(&nid).copied().ok_or_else(|| {
-        lines.error(ln, format!("element {el} references node {nid}, which $Nodes does not define"))
+        ParseError::new(
+            file,
+            at,
+            format!("element {el} references node {nid}, which $Nodes does not define"),
+        )
     })
 }
 
 /// Adds a tet4/hex8 element and returns its index; with `allow_repeat` (2.2) a repeated tag
 /// with identical nodes returns the earlier index instead of an error.
-fn add_element(
-    lines: &Lines<'_>,
+pub(super) fn add_element(
+    file: &Path,
     st: &mut State,
     id: u64,
     el: Element,
-    ln: usize,
+    at: Location,
     allow_repeat: bool,
 ) -> Result<usize, ParseError> {
     let idx = st.elements.len();
@@ -457,10 +557,11 @@ fn add_element(
             if allow_repeat && st.elements[prev] == el {
                 return Ok(prev);
             }
-            let first = st.element_lines[prev];
-            return Err(lines.error(
-                ln,
-                format!("duplicate element tag {id}: already defined on line {first}"),
+            let first = describe(st.element_locs[prev]);
+            return Err(ParseError::new(
+                file,
+                at,
+                format!("duplicate element tag {id}: already defined {first}"),
             ));
         }
         Entry::Vacant(v) => {
@@ -469,11 +570,11 @@ fn add_element(
     }
     st.elements.push(el);
     st.element_ids.push(id);
-    st.element_lines.push(ln);
+    st.element_locs.push(at);
     Ok(idx)
 }
 
-fn build_element(kind_type: u32, idx: &[usize]) -> Element {
+pub(super) fn build_element(kind_type: u32, idx: &[usize]) -> Element {
     if kind_type == 4 {
         Element::tet4([idx[0], idx[1], idx[2], idx[3]])
     } else {
@@ -486,7 +587,8 @@ fn build_element(kind_type: u32, idx: &[usize]) -> Element {
 fn read_elements_v2(lines: &mut Lines<'_>, st: &mut State, size: usize) -> Result<(), ParseError> {
     let (ln, t) = next_nonempty(lines, "the number of elements")?;
     let n: usize = parse_field(lines.file(), ln, t, "the number of elements")?;
-    st.elements.reserve(cap(n, size));
+    // "1 15 0 1\n"
+    st.elements.reserve(count(lines, ln, n, 9, size, "elements")?);
     let mut idx: Vec<usize> = Vec::with_capacity(32);
     for _ in 0..n {
         let (ln, t) = next_nonempty(lines, "an element line 'tag type ntags tags… nodes…'")?;
@@ -516,7 +618,7 @@ fn read_elements_v2(lines: &mut Lines<'_>, st: &mut State, size: usize) -> Resul
         idx.clear();
         for s in f.by_ref() {
             let nid: u64 = parse_field(lines.file(), ln, s, "a node tag (integer)")?;
-            idx.push(node_index(lines, st, ln, id, nid)?);
+            idx.push(node_index(lines.file(), st, Location::Line(ln), id, nid)?);
         }
         if idx.len() != count {
             return Err(lines.error(
@@ -528,7 +630,14 @@ fn read_elements_v2(lines: &mut Lines<'_>, st: &mut State, size: usize) -> Resul
             ));
         }
         if dim == 3 {
-            let e = add_element(lines, st, id, build_element(ty, &idx), ln, true)?;
+            let e = add_element(
+                lines.file(),
+                st,
+                id,
+                build_element(ty, &idx),
+                Location::Line(ln),
+                true,
+            )?;
             if physical != 0 {
                 st.groups.entry((3, physical)).or_default().elements.push(e);
             }
@@ -544,7 +653,10 @@ fn read_elements_v4(lines: &mut Lines<'_>, st: &mut State, size: usize) -> Resul
     let mut f = t.split_ascii_whitespace();
     let blocks: usize = field(lines, ln, &mut f, "the number of entity blocks")?;
     let n: usize = field(lines, ln, &mut f, "the number of elements")?;
-    st.elements.reserve(cap(n, size));
+    // "1 1\n"
+    st.elements.reserve(count(lines, ln, n, 4, size, "elements")?);
+    // "0 1 15 1\n"
+    count(lines, ln, blocks, 9, size, "element entity blocks")?;
     let mut idx: Vec<usize> = Vec::with_capacity(32);
     for _ in 0..blocks {
         let (ln, t) = next_nonempty(lines, "an element block header 'dim tag type count'")?;
@@ -552,7 +664,8 @@ fn read_elements_v4(lines: &mut Lines<'_>, st: &mut State, size: usize) -> Resul
         let block_dim: u8 = field(lines, ln, &mut f, "an entity dimension (0 to 3)")?;
         let entity: i64 = field(lines, ln, &mut f, "an entity tag")?;
         let ty: u32 = field(lines, ln, &mut f, "an element type")?;
-        let count: usize = field(lines, ln, &mut f, "the number of elements in the block")?;
+        let n: usize = field(lines, ln, &mut f, "the number of elements in the block")?;
+        let n = count(lines, ln, n, 4, size, "elements in the block")?;
         if block_dim > 3 {
             return Err(lines.error(ln, format!("expected a dimension 0 to 3, found {block_dim}")));
         }
@@ -572,14 +685,14 @@ fn read_elements_v4(lines: &mut Lines<'_>, st: &mut State, size: usize) -> Resul
         }
         let first_element = st.elements.len();
         let first_node = st.lower_nodes.len();
-        for _ in 0..count {
+        for _ in 0..n {
             let (ln, t) = next_nonempty(lines, "an element line 'tag node-tags…'")?;
             let mut f = t.split_ascii_whitespace();
             let id: u64 = field(lines, ln, &mut f, "an element tag (integer)")?;
             idx.clear();
             for s in f.by_ref() {
                 let nid: u64 = parse_field(lines.file(), ln, s, "a node tag (integer)")?;
-                idx.push(node_index(lines, st, ln, id, nid)?);
+                idx.push(node_index(lines.file(), st, Location::Line(ln), id, nid)?);
             }
             if expected.is_some_and(|c| c != idx.len()) || idx.is_empty() {
                 return Err(lines.error(
@@ -592,7 +705,14 @@ fn read_elements_v4(lines: &mut Lines<'_>, st: &mut State, size: usize) -> Resul
                 ));
             }
             if dim == 3 {
-                add_element(lines, st, id, build_element(ty, &idx), ln, false)?;
+                add_element(
+                    lines.file(),
+                    st,
+                    id,
+                    build_element(ty, &idx),
+                    Location::Line(ln),
+                    false,
+                )?;
             } else {
                 st.lower_nodes.extend_from_slice(&idx);
             }

@@ -3,7 +3,8 @@
 //! Reads `v x y z [w]` vertex lines and `f` face lines whose entries may be `i`, `i/t`,
 //! `i//n` or `i/t/n`, with 1-based or negative (relative to the vertices read so far)
 //! indices. Polygons are fan-triangulated from their first vertex. Every other statement
-//! (`vn`, `vt`, `g`, `o`, `s`, `usemtl`, `mtllib`, comments…) is ignored.
+//! (`vn`, `vt`, `g`, `o`, `s`, `usemtl`, `mtllib`, comments…) is ignored. Statement
+//! keywords are case-insensitive and a leading UTF-8 byte-order mark is skipped.
 
 use std::io::{self, Write};
 use std::path::Path;
@@ -24,7 +25,8 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<TriSurface, ParseError> {
     while let Some((ln, line)) = lines.next_line() {
         let line = line.split('#').next().unwrap_or("");
         let mut tok = line.split_whitespace();
-        match tok.next() {
+        // Statements are case-insensitive (`V`, `F` from some exporters).
+        match tok.next().map(|k| k.to_ascii_lowercase()).as_deref() {
             Some("v") => {
                 let mut p = [0.0; 3];
                 for (c, x) in p.iter_mut().enumerate() {
@@ -106,6 +108,17 @@ mod tests {
                     f 1/1/1 2//1 3/1 4\nf -4 -3 -2\n";
         let s = read(text.as_bytes(), Path::new("a.obj")).unwrap();
         assert_eq!(s.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 1, 2]]);
+    }
+
+    #[test]
+    fn upper_case_statements_and_byte_order_mark() {
+        let p = Path::new("a.obj");
+        let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        let expect = read(text.as_bytes(), p).unwrap();
+        assert_eq!(expect.triangles, vec![[0, 1, 2]]);
+        assert_eq!(read(text.to_ascii_uppercase().as_bytes(), p).unwrap(), expect);
+        let bom = [crate::io::UTF8_BOM, text.as_bytes()].concat();
+        assert_eq!(read(&bom, p).unwrap(), expect);
     }
 
     #[test]

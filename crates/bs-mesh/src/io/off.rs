@@ -1,6 +1,6 @@
 //! Object File Format (OFF) triangle surfaces.
 //!
-//! Header `OFF`, then the counts `nv nf ne` (on the header line or the next non-comment
+//! Header `OFF` (any case, after an optional UTF-8 byte-order mark), then the counts `nv nf ne` (on the header line or the next non-comment
 //! line), `nv` vertex lines `x y z` (extra values such as colours are ignored) and `nf` face
 //! lines `n i1 … in` (0-based indices, optional colour after them). Faces with more than three
 //! vertices are fan-triangulated. `#` starts a comment anywhere.
@@ -29,7 +29,9 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<TriSurface, ParseError> {
     let mut lines = Lines::new(bytes, file)?;
     let (ln, header) = content(&mut lines).ok_or_else(|| lines.eof_error("the 'OFF' header"))?;
     let rest = header
-        .strip_prefix("OFF")
+        .get(..3)
+        .filter(|h| h.eq_ignore_ascii_case("OFF"))
+        .map(|_| &header[3..])
         .ok_or_else(|| lines.error(ln, format!("expected the 'OFF' header, found '{header}'")))?;
     let (ln, counts) = if rest.trim().is_empty() {
         content(&mut lines).ok_or_else(|| lines.eof_error("the counts 'nv nf ne'"))?
@@ -45,7 +47,8 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<TriSurface, ParseError> {
     let nv = count("the vertex count")?;
     let nf = count("the face count")?;
     // Each vertex line needs at least 6 bytes ("0 0 0\n"), each face 8: cap preallocation by
-    // what the file can hold so that a corrupted count cannot allocate huge buffers.
+    // what the file can hold so that a corrupted count cannot allocate huge buffers (such a
+    // count then fails at the end of the file, naming the count).
     let mut s = TriSurface {
         vertices: Vec::with_capacity(nv.min(bytes.len() / 6)),
         triangles: Vec::with_capacity(nf.min(bytes.len() / 8)),
@@ -123,6 +126,21 @@ mod tests {
         assert_eq!(s.vertices.len(), 4);
         assert_eq!(s.vertices[2], Point3::new(1.0, 1.0, 0.0));
         assert_eq!(s.triangles, vec![[0, 1, 2], [0, 2, 3]]);
+    }
+
+    #[test]
+    fn lower_case_header_and_byte_order_mark() {
+        let p = Path::new("a.off");
+        let text = "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+        let expect = read(text.as_bytes(), p).unwrap();
+        assert_eq!(expect.triangles, vec![[0, 1, 2]]);
+        assert_eq!(read(text.to_ascii_lowercase().as_bytes(), p).unwrap(), expect);
+        assert_eq!(read(b"Off 3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", p).unwrap(), expect);
+        let bom = [crate::io::UTF8_BOM, text.as_bytes()].concat();
+        assert_eq!(read(&bom, p).unwrap(), expect);
+        // Line numbers are unchanged by the mark.
+        let bom = [crate::io::UTF8_BOM, b"OFF\n3 1 0\n0 0 0\n".as_slice()].concat();
+        assert_eq!(read(&bom, p).unwrap_err().location, Location::Line(3));
     }
 
     #[test]

@@ -7,8 +7,12 @@
 //!
 //! Format detection: a file whose size is exactly `84 + 50·n` where `n` is the little-endian
 //! `u32` at byte 80 is binary, even when it starts with `solid` (many exporters write that
-//! into the binary header). Otherwise a file starting with `solid` is ASCII, and anything else
-//! is a (truncated or padded) binary file, reported with its expected and actual size.
+//! into the binary header). Otherwise a file starting with `solid` (after an optional UTF-8
+//! byte-order mark and whitespace) is ASCII, and anything else is a (truncated or padded)
+//! binary file, reported with its expected and actual size.
+//!
+//! ASCII keywords are case-insensitive (`SOLID`, `FACET NORMAL`, `VERTEX`, `ENDSOLID`…), as
+//! several CAD exporters write them in capitals.
 
 use std::collections::HashMap;
 use std::io::{self, Write};
@@ -27,11 +31,12 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<TriSurface, ParseError> {
             return read_binary(bytes, file);
         }
     }
-    let start = bytes.iter().position(|b| !b.is_ascii_whitespace()).unwrap_or(bytes.len());
+    let text = super::strip_bom(bytes);
+    let start = text.iter().position(|b| !b.is_ascii_whitespace()).unwrap_or(text.len());
     let looks_ascii =
-        bytes[start..].len() >= 5 && bytes[start..start + 5].eq_ignore_ascii_case(b"solid");
+        text[start..].len() >= 5 && text[start..start + 5].eq_ignore_ascii_case(b"solid");
     if looks_ascii {
-        match read_ascii(bytes, file) {
+        match read_ascii(text, file) {
             Ok(s) => Ok(s),
             // A binary file whose header starts with "solid" but whose size is wrong: the
             // size message is the useful one.
@@ -136,6 +141,33 @@ fn read_binary(bytes: &[u8], file: &Path) -> Result<TriSurface, ParseError> {
     Ok(m.surface)
 }
 
+/// The keywords of ASCII STL, matched case-insensitively.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Keyword {
+    Solid,
+    EndSolid,
+    Facet,
+    Outer,
+    Vertex,
+    EndLoop,
+    EndFacet,
+    Other,
+}
+
+fn keyword(token: &str) -> Keyword {
+    const KEYWORDS: [(&str, Keyword); 7] = [
+        ("solid", Keyword::Solid),
+        ("endsolid", Keyword::EndSolid),
+        ("facet", Keyword::Facet),
+        ("outer", Keyword::Outer),
+        ("vertex", Keyword::Vertex),
+        ("endloop", Keyword::EndLoop),
+        ("endfacet", Keyword::EndFacet),
+    ];
+    KEYWORDS.iter().find(|(k, _)| k.eq_ignore_ascii_case(token)).map_or(Keyword::Other, |k| k.1)
+}
+
+/// Parses ASCII STL text (`bytes` without its byte-order mark).
 fn read_ascii(bytes: &[u8], file: &Path) -> Result<TriSurface, ParseError> {
     let text = std::str::from_utf8(bytes).map_err(|e| {
         ParseError::new(
@@ -154,15 +186,15 @@ fn read_ascii(bytes: &[u8], file: &Path) -> Result<TriSurface, ParseError> {
         let ln = i + 1;
         let mut tok = line.split_whitespace();
         let Some(key) = tok.next() else { continue };
-        match (key, in_solid, facet.is_some()) {
-            ("solid", false, _) => in_solid = true,
-            ("endsolid", true, false) => in_solid = false,
-            ("facet", true, false) => {
+        match (keyword(key), in_solid, facet.is_some()) {
+            (Keyword::Solid, false, _) => in_solid = true,
+            (Keyword::EndSolid, true, false) => in_solid = false,
+            (Keyword::Facet, true, false) => {
                 facet = Some((ln, Vec::with_capacity(3)));
                 seen_loop = false;
             }
-            ("outer", true, true) if !seen_loop => seen_loop = true,
-            ("vertex", true, true) if seen_loop => {
+            (Keyword::Outer, true, true) if !seen_loop => seen_loop = true,
+            (Keyword::Vertex, true, true) if seen_loop => {
                 let mut p = [0.0; 3];
                 for (c, x) in p.iter_mut().enumerate() {
                     let f = tok.next().ok_or_else(|| {
@@ -174,8 +206,8 @@ fn read_ascii(bytes: &[u8], file: &Path) -> Result<TriSurface, ParseError> {
                     v.push(p);
                 }
             }
-            ("endloop", true, true) => {}
-            ("endfacet", true, true) => {
+            (Keyword::EndLoop, true, true) => {}
+            (Keyword::EndFacet, true, true) => {
                 let (start, v) = facet.take().unwrap_or_default();
                 if v.len() != 3 {
                     return Err(err(
@@ -326,6 +358,31 @@ mod tests {
         let e = read(b"solid x\nbogus\n", p()).unwrap_err();
         assert_eq!(e.location, Location::Line(2));
         assert!(e.message.contains("expected 'facet normal' or 'endsolid'"), "{}", e.message);
+    }
+
+    const UPPER: &str = "SOLID CAD\nFACET NORMAL 0 0 1\n OUTER LOOP\n  VERTEX 0 0 0\n  VERTEX 1 0 0\n  \
+                         Vertex 0 1 0\n ENDLOOP\nENDFACET\nEndSolid CAD\n";
+
+    #[test]
+    fn ascii_keywords_are_case_insensitive() {
+        let lower = UPPER.to_ascii_lowercase();
+        let expect = read(lower.as_bytes(), p()).unwrap();
+        assert_eq!(expect.triangles, vec![[0, 1, 2]]);
+        assert_eq!(read(UPPER.as_bytes(), p()).unwrap(), expect);
+    }
+
+    #[test]
+    fn ascii_with_byte_order_mark_is_ascii() {
+        // Long enough (> 84 bytes) that the old reader took it for a truncated binary file.
+        let mut b = crate::io::UTF8_BOM.to_vec();
+        b.extend_from_slice(UPPER.as_bytes());
+        assert!(b.len() > 84);
+        let s = read(&b, p()).unwrap();
+        assert_eq!(s, read(UPPER.as_bytes(), p()).unwrap());
+        // Errors keep their line numbers.
+        let mut b = crate::io::UTF8_BOM.to_vec();
+        b.extend_from_slice(b"solid x\nbogus\n");
+        assert_eq!(read(&b, p()).unwrap_err().location, Location::Line(2));
     }
 
     #[test]

@@ -109,9 +109,22 @@ impl<'a> Cursor<'a> {
             )
         })?;
         if !self.binary {
-            // Each value needs at least two bytes (digit and separator): cap preallocation by
-            // what the rest of the file can hold.
-            let cap = n.min((self.b.len() - self.pos) / 2 + 1);
+            // Each value needs at least two bytes (digit and separator, none after the last):
+            // a count the rest of the file cannot hold is refused before allocating or reading
+            // on into the next section.
+            let left = self.b.len() - self.pos;
+            let room = left / 2 + 1;
+            if n > room {
+                return Err(self.err_line(
+                    line,
+                    format!(
+                        "unexpected end of file: {what} has room for at most {room} of its {n} \
+                         values in the {left} bytes left (2 bytes each at least); the count is \
+                         corrupt or the file is truncated"
+                    ),
+                ));
+            }
+            let cap = n;
             let mut data = if float {
                 Data::F(Vec::with_capacity(cap))
             } else {
@@ -261,7 +274,9 @@ enum Section {
 
 /// Parses a legacy VTK unstructured grid (ASCII or big-endian BINARY).
 pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
-    let mut c = Cursor { b: bytes, pos: 0, line: 1, file, binary: false };
+    // A UTF-8 byte-order mark before the header is skipped (byte offsets stay file offsets).
+    let bom = bytes.len() - super::strip_bom(bytes).len();
+    let mut c = Cursor { b: bytes, pos: bom, line: 1, file, binary: false };
     let first = c.rest_of_line();
     if !first.trim_start().starts_with("# vtk DataFile Version") {
         return Err(c.err_line(
