@@ -302,9 +302,8 @@ pub fn main() -> Result<(), String> {
         std::thread::available_parallelism().map(|n| n.get()).unwrap_or(0)
     );
     print!("{md}");
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let path = root.join("docs/contact-bench.md");
-    std::fs::write(&path, md).map_err(|e| format!("could not write {}: {e}", path.display()))?;
+    let path = crate::util::root().join("docs/contact-bench.md");
+    crate::util::write(&path, &md)?;
     println!("\nwritten to docs/contact-bench.md");
     if !same {
         return Err("coherent handler diverged from the paper handler".into());

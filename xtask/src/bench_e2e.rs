@@ -26,8 +26,8 @@ use bs_scene::Prepared;
 use bs_scene::scene::SolverKind;
 use bs_scene::study::{Variant, difference};
 
-use crate::chart::replace_block;
-use crate::validate::{field, read_reference, root};
+use crate::util::{replace_block, root};
+use bs_scene::calculix::{field, read_reference};
 
 /// The cases: name, scene, and the scene whose mesh the CalculiX reference was computed on.
 const CASES: [(&str, &str, &str); 5] = [

@@ -11,12 +11,11 @@
 //! the findings table into `docs/speed-accuracy.md` (between markers) and the findings that
 //! `brainshift check` prints as advice into `crates/bs-scene/data/speed-accuracy.json`.
 
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use bs_mesh::quality::mean_edge_length;
 use bs_mesh::{TetLocator, Vector3, transfer};
-use bs_scene::findings::{ChartPoint, Findings, TARGETS, cheapest, pareto_front};
+use bs_scene::findings::{ChartPoint, Findings, TARGETS, from_csv, markdown, pareto_front, to_csv};
 use bs_scene::prepare::Prepared;
 use bs_scene::scene::{Algorithm, ElementChoice, SolverKind};
 use bs_scene::study::{ContactChoice, Variant, difference};
@@ -39,7 +38,8 @@ const SERIES_COLORS: [RGBColor; 10] = [
     RGBColor(0, 100, 70),
     RGBColor(150, 150, 0),
 ];
-use crate::validate::{read_reference, root};
+use crate::util::{replace_block, root, write};
+use bs_scene::calculix::read_reference;
 
 /// Tolerance of the reference solution of each case (mm); Newton–Krylov, whose error
 /// estimate is the last correction of a superlinear iteration.
@@ -262,7 +262,7 @@ fn calculix_points(
         if r.meta["converged"] != serde_json::Value::Bool(true) {
             continue;
         }
-        let u = crate::validate::field(&level.p, &r, tag)?;
+        let u = bs_scene::calculix::field(&level.p, &r, tag)?;
         let (mean, max) = difference(&u, &level.reference, None);
         points.push(ChartPoint {
             case: case.name.into(),
@@ -457,119 +457,12 @@ impl Figure for SpeedAccuracy<'_> {
     }
 }
 
-/// The points as CSV (one row each).
-pub fn csv(points: &[ChartPoint]) -> String {
-    let mut s = String::from(
-        "case,series,level,element,solver,handler,tolerance_mm,nodes,mean_edge_mm,seconds,steps,\
-         mean_error_mm,max_error_mm,mean_error_vs_ccx_k10_mm,reference\n",
-    );
-    for p in points {
-        let _ = writeln!(
-            s,
-            "{},{},{},{},{},{},{:e},{},{:.3},{:.3},{},{:.4e},{:.4e},{},{}",
-            p.case,
-            p.series,
-            p.level,
-            p.element,
-            p.solver,
-            p.handler,
-            p.tolerance,
-            p.nodes,
-            p.mean_edge,
-            p.seconds,
-            p.steps,
-            p.mean_error,
-            p.max_error,
-            p.mean_error_ccx.map_or(String::new(), |e| format!("{e:.4e}")),
-            p.is_reference
-        );
-    }
-    s
-}
-
-/// The findings of a case: the cheapest configuration per target and the Pareto front.
-pub fn findings_markdown(case: &str, points: &[ChartPoint]) -> String {
-    let mut s = format!("### {case}\n\n");
-    if let Some(r) = points.iter().find(|p| p.is_reference) {
-        let _ = writeln!(
-            s,
-            "Reference: {} ({} nodes, mean edge {:.2} mm), {:.1} s, {} steps.\n",
-            r.label(),
-            r.nodes,
-            r.mean_edge,
-            r.seconds,
-            r.steps
-        );
-    }
-    s.push_str("| target (mean error) | cheapest configuration | time (s) | mean / max error (mm) |\n|---|---|---:|---|\n");
-    for t in TARGETS {
-        match cheapest(points, t) {
-            Some(p) => {
-                let _ = writeln!(
-                    s,
-                    "| ≤ {t} mm | {} (mean edge {:.2} mm) | {:.2} | {:.3} / {:.3} |",
-                    p.label(),
-                    p.mean_edge,
-                    p.seconds,
-                    p.mean_error,
-                    p.max_error
-                );
-            }
-            None => {
-                let _ = writeln!(s, "| ≤ {t} mm | none measured meets it | | |");
-            }
-        }
-    }
-    s.push_str("\nPareto front (fastest first):\n\n| configuration | time (s) | mean error (mm) | vs CalculiX K=10 (mm) |\n|---|---:|---:|---:|\n");
-    for i in pareto_front(points) {
-        let p = &points[i];
-        let _ = writeln!(
-            s,
-            "| {} | {:.2} | {:.3e} | {} |",
-            p.label(),
-            p.seconds,
-            p.mean_error,
-            p.mean_error_ccx.map_or("–".into(), |e| format!("{e:.3e}"))
-        );
-    }
-    for p in points.iter().filter(|p| p.solver == "calculix") {
-        let _ = writeln!(
-            s,
-            "\n{}: {:.1} s (stored run time), mean error {:.3e} mm, max {:.3e} mm.",
-            p.label(),
-            p.seconds,
-            p.mean_error,
-            p.max_error
-        );
-    }
-    s
-}
-
-/// What `brainshift check` needs to give advice: per case and target, the cheapest
-/// configuration in scene terms (relative mesh size, element, relative tolerance).
-fn write(path: &Path, text: &str) -> Result<(), String> {
-    if let Some(d) = path.parent() {
-        std::fs::create_dir_all(d).map_err(|e| format!("{}: {e}", d.display()))?;
-    }
-    std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))
-}
-
-/// Replaces the text between `<!-- NAME:begin -->` and `<!-- NAME:end -->` in `path`.
-pub fn replace_block(path: &Path, name: &str, body: &str) -> Result<(), String> {
-    let doc = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let (begin, end) = (format!("<!-- {name}:begin -->"), format!("<!-- {name}:end -->"));
-    let (Some(a), Some(b)) = (doc.find(&begin), doc.find(&end)) else {
-        return Err(format!("{}: missing the {begin} / {end} markers", path.display()));
-    };
-    write(path, &format!("{}{begin}\n{body}{}", &doc[..a], &doc[b..]))
-}
-
 fn charts_dir() -> PathBuf {
     root().join("docs/charts")
 }
 
-/// Reads points back from a CSV written by [`csv`]; the mesh diagonal (not stored) is
-/// taken from the case's scenes.
+/// Reads points back from a CSV written by [`bs_scene::findings::to_csv`]; the mesh
+/// diagonal (not stored) is taken from the case's scenes.
 pub fn read_csv(path: &Path, case: &Case) -> Result<Vec<ChartPoint>, String> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| format!("{}: {e} (run `cargo xtask chart` first)", path.display()))?;
@@ -578,39 +471,9 @@ pub fn read_csv(path: &Path, case: &Case) -> Result<Vec<ChartPoint>, String> {
         let p = Prepared::load(&root().join(scene)).map_err(|e| format!("{scene}: {e}"))?;
         diagonals.insert(label.to_string(), diagonal(&p));
     }
-    let mut points = Vec::new();
-    for (n, line) in text.lines().enumerate().skip(1) {
-        let bad = |what: &str| format!("{}:{}: {what}", path.display(), n + 1);
-        let f: Vec<&str> = line.split(',').collect();
-        if f.len() != 15 {
-            return Err(bad("expected 15 columns"));
-        }
-        let num = |i: usize| {
-            f[i].parse::<f64>().map_err(|_| bad(&format!("column {} is not a number", i + 1)))
-        };
-        let int = |i: usize| {
-            f[i].parse::<usize>().map_err(|_| bad(&format!("column {} is not a count", i + 1)))
-        };
-        points.push(ChartPoint {
-            case: f[0].into(),
-            series: f[1].into(),
-            level: f[2].into(),
-            element: f[3].into(),
-            solver: f[4].into(),
-            handler: f[5].into(),
-            tolerance: num(6)?,
-            nodes: int(7)?,
-            mean_edge: num(8)?,
-            diagonal: diagonals.get(f[2]).copied().unwrap_or(f64::NAN),
-            seconds: num(9)?,
-            steps: int(10)?,
-            mean_error: num(11)?,
-            max_error: num(12)?,
-            mean_error_ccx: if f[13].is_empty() { None } else { Some(num(13)?) },
-            is_reference: f[14] == "true",
-        });
-    }
-    Ok(points)
+    from_csv(&text, &path.display().to_string(), &|level| {
+        diagonals.get(level).copied().unwrap_or(f64::NAN)
+    })
 }
 
 /// `cargo xtask chart [--case NAME] [--replot]`.
@@ -639,7 +502,7 @@ pub fn main(args: &[String]) -> Result<(), String> {
             read_csv(&stem.with_extension("csv"), case)?
         } else {
             let points = solve(case)?;
-            write(&stem.with_extension("csv"), &csv(&points))?;
+            write(&stem.with_extension("csv"), &to_csv(&points))?;
             points
         };
         plot::save(&SpeedAccuracy { title, points: &points }, stem, (1100, 750))?;
@@ -651,7 +514,7 @@ pub fn main(args: &[String]) -> Result<(), String> {
         let stem = charts_dir().join(format!("speed-accuracy-{}", case.name));
         let title = format!("{}: speed vs accuracy (DR + kinematic contact)", case.name);
         let points = sweep(&stem, case, title, &contact_sweep)?;
-        findings.push_str(&findings_markdown(case.name, &points));
+        findings.push_str(&markdown(case.name, &points));
         findings.push('\n');
         all.push((case.name.to_string(), points));
     }
@@ -659,7 +522,7 @@ pub fn main(args: &[String]) -> Result<(), String> {
         let stem = charts_dir().join("dr-vs-newton-ellipsoid");
         let title = "ellipsoid without skull: DR vs Newton (T4)".to_string();
         let points = sweep(&stem, ell, title, &newton_sweep)?;
-        findings.push_str(&findings_markdown("ellipsoid without skull (DR vs Newton)", &points));
+        findings.push_str(&markdown("ellipsoid without skull (DR vs Newton)", &points));
     }
     if only.is_none() {
         replace_block(&root().join("docs/speed-accuracy.md"), "findings", &findings)?;

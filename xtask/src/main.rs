@@ -30,6 +30,7 @@ mod deps;
 mod plot;
 mod reference;
 mod stability;
+mod util;
 mod validate;
 
 use std::process::ExitCode;

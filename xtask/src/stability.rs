@@ -22,30 +22,18 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use bs_dr::SolveError;
 use bs_mesh::io::Fields;
 use bs_mesh::{Mesh, Point3, TriSurface};
 use bs_scene::Prepared;
 use bs_scene::scene::{Algorithm, ElementChoice, SolverKind};
 use bs_scene::study::{ContactChoice, Failure, Outcome, Variant, difference};
+use bs_scene::verdict::{Verdict, classify};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use crate::plot::{self, Figure, err};
-use crate::validate::{escape_cell, read_reference, root};
-
-/// How a run ended.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Verdict {
-    /// A valid result.
-    Converged,
-    /// Stopped with a typed error before writing anything: the guard's name.
-    Guard(String),
-    /// A result that is not valid (the reason), returned as if it were.
-    Silent(String),
-    /// Not run by us (CalculiX's stored outcome is shown as text).
-    External(String),
-}
+use crate::util::{escape_cell, replace_block, root};
+use bs_scene::calculix::read_reference;
 
 /// One cell of the map.
 #[derive(Debug, Clone, PartialEq)]
@@ -63,33 +51,6 @@ pub struct Cell {
     /// A setting no scene can reach (an internal switch turned off to show why it is on):
     /// its silent failures are findings, not defects.
     pub ablation: bool,
-}
-
-/// The short name of a solver error.
-pub fn guard_name(e: &SolveError) -> String {
-    e.kind().to_string()
-}
-
-/// Classifies a variant's result. A returned result must be finite, have no inverted
-/// element and leave no slave outside the skull beyond the tolerance; otherwise the run
-/// failed silently.
-pub fn classify(result: &Result<Outcome, Failure>, tolerance: f64) -> Verdict {
-    match result {
-        Err(Failure::Solve(e)) => Verdict::Guard(guard_name(e)),
-        Err(Failure::Check(_)) => Verdict::Guard("ContactCheck".into()),
-        Err(Failure::Setup(_)) => Verdict::Guard("SceneCheck".into()),
-        Ok(o) => {
-            if o.displacements.iter().any(|u| !u.iter().all(|x| x.is_finite())) {
-                Verdict::Silent("non-finite displacement".into())
-            } else if o.min_volume_ratio.is_nan() || o.min_volume_ratio <= 0.0 {
-                Verdict::Silent(format!("inverted element (J = {:.2e})", o.min_volume_ratio))
-            } else if o.max_penetration_after > tolerance {
-                Verdict::Silent(format!("node outside by {:.2e}", o.max_penetration_after))
-            } else {
-                Verdict::Converged
-            }
-        }
-    }
 }
 
 /// A structured block [0, L]³ of n³ cells, hexahedra or each split into 6 tetrahedra,
@@ -234,21 +195,11 @@ fn cell(row: &str, value: String, r: &Result<Outcome, Failure>, tol: f64, note: 
         "{:<34} {:<10} {:<28} {:>7} steps  {}",
         c.row,
         c.value,
-        verdict_text(&c.verdict),
+        Verdict::text(&c.verdict),
         c.steps,
         c.note
     );
     c
-}
-
-/// The verdict in words.
-pub fn verdict_text(v: &Verdict) -> String {
-    match v {
-        Verdict::Converged => "converged".into(),
-        Verdict::Guard(g) => format!("guard: {g}"),
-        Verdict::Silent(why) => format!("SILENT: {why}"),
-        Verdict::External(s) => s.clone(),
-    }
 }
 
 /// Runs the map's rows.
@@ -354,7 +305,7 @@ fn rows(scope: Scope, dir: &Path) -> Result<Vec<Cell>, String> {
                 let dev = difference(&o.displacements, b, None).1;
                 if dev > 10.0 * tol {
                     c.verdict = Verdict::Silent(format!("differs from brute force by {dev:.2e}"));
-                    println!("  -> {}", verdict_text(&c.verdict));
+                    println!("  -> {}", Verdict::text(&c.verdict));
                 }
             }
             cells.push(c);
@@ -425,7 +376,7 @@ fn rows(scope: Scope, dir: &Path) -> Result<Vec<Cell>, String> {
             && d > 3.0 * base
         {
             c.verdict = Verdict::Silent(format!("hourglass modes ({d:.1} vs {base:.1} mm)"));
-            println!("  -> {}", verdict_text(&c.verdict));
+            println!("  -> {}", Verdict::text(&c.verdict));
         }
         cells.push(c);
     }
@@ -465,7 +416,7 @@ fn rows(scope: Scope, dir: &Path) -> Result<Vec<Cell>, String> {
             note: r.meta["message"].as_str().unwrap_or("").to_string(),
             ablation: false,
         };
-        println!("{:<34} {:<10} {}", c.row, c.value, verdict_text(&c.verdict));
+        println!("{:<34} {:<10} {}", c.row, c.value, Verdict::text(&c.verdict));
         cells.push(c);
     }
     Ok(cells)
@@ -519,7 +470,7 @@ impl Figure for Map<'_> {
                 .map_err(err)?;
                 let outcome = match &c.verdict {
                     Verdict::Converged => format!("ok, {} steps", c.steps),
-                    other => verdict_text(other).replace("guard: ", ""),
+                    other => Verdict::text(other).replace("guard: ", ""),
                 };
                 let value =
                     if c.ablation { format!("{} (ablation)", c.value) } else { c.value.clone() };
@@ -546,7 +497,7 @@ pub fn csv(cells: &[Cell]) -> String {
             "{},{},{},{},{},{}",
             c.row,
             c.value,
-            verdict_text(&c.verdict).replace(',', ";"),
+            Verdict::text(&c.verdict).replace(',', ";"),
             c.steps,
             c.note.replace(',', ";"),
             c.ablation
@@ -566,7 +517,7 @@ pub fn markdown(cells: &[Cell]) -> String {
             escape_cell(&c.row),
             escape_cell(&c.value),
             if c.ablation { " (ablation)" } else { "" },
-            escape_cell(&verdict_text(&c.verdict)),
+            escape_cell(&Verdict::text(&c.verdict)),
             c.steps,
             escape_cell(&c.note)
         );
@@ -590,7 +541,7 @@ pub fn main(args: &[String]) -> Result<(), String> {
         let stem = root().join("docs/charts/stability-map");
         std::fs::write(stem.with_extension("csv"), csv(&cells)).map_err(|e| e.to_string())?;
         plot::save(&Map { cells: &cells }, &stem, (1500, 640))?;
-        crate::chart::replace_block(&root().join("docs/stability.md"), "map", &markdown(&cells))?;
+        replace_block(&root().join("docs/stability.md"), "map", &markdown(&cells))?;
         println!("map written to {}", stem.display());
     }
     println!(

@@ -12,15 +12,15 @@
 //! to it), never from what the code happens to produce. The quick cases run in `cargo test`;
 //! the whole set runs optimised (`cargo xtask validate` re-runs itself in release).
 
-use std::collections::HashMap;
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use crate::util::{escape_cell, replace_block, root};
 use bs_contact::shapes::{self, Rng};
 use bs_contact::{BruteForce, ClosestPoint, Handler, MasterSurface, PaperParams};
 use bs_mesh::{Point3, TriSurface, Vector3};
 use bs_scene::Prepared;
+use bs_scene::calculix::{field, read_reference};
 use bs_scene::scene::{Algorithm, ElementChoice, SolverKind};
 use bs_scene::study::{ContactChoice, Outcome, Variant, difference};
 
@@ -53,10 +53,6 @@ pub enum Scope {
     Quick,
     /// Everything (release).
     Full,
-}
-
-pub(crate) fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
 fn load(rel: &str) -> Result<Prepared, String> {
@@ -292,50 +288,6 @@ fn handler_solves(add: &mut dyn FnMut(Row)) -> Result<(), String> {
     Ok(())
 }
 
-/// A stored CalculiX result: displacements by node id and its metadata.
-pub(crate) struct Reference {
-    displacements: HashMap<u64, Vector3<f64>>,
-    pub(crate) meta: serde_json::Value,
-}
-
-pub(crate) fn read_reference(dir: &Path, tag: &str) -> Result<Option<Reference>, String> {
-    let meta_path = dir.join(format!("{tag}.json"));
-    let Ok(meta_text) = std::fs::read_to_string(&meta_path) else { return Ok(None) };
-    let meta: serde_json::Value =
-        serde_json::from_str(&meta_text).map_err(|e| format!("{}: {e}", meta_path.display()))?;
-    let csv_path = dir.join(format!("{tag}.csv"));
-    let Ok(text) = std::fs::read_to_string(&csv_path) else {
-        return Ok(Some(Reference { displacements: HashMap::new(), meta }));
-    };
-    let mut displacements = HashMap::new();
-    for (n, line) in text.lines().enumerate().skip(1) {
-        let bad = || format!("{}:{}: expected node_id,ux,uy,uz", csv_path.display(), n + 1);
-        let f: Vec<&str> = line.split(',').collect();
-        if f.len() != 4 {
-            return Err(bad());
-        }
-        let id: u64 = f[0].parse().map_err(|_| bad())?;
-        let v: Vec<f64> =
-            f[1..].iter().map(|s| s.parse::<f64>()).collect::<Result<_, _>>().map_err(|_| bad())?;
-        displacements.insert(id, Vector3::new(v[0], v[1], v[2]));
-    }
-    Ok(Some(Reference { displacements, meta }))
-}
-
-/// The reference field in mesh node order.
-pub(crate) fn field(p: &Prepared, r: &Reference, what: &str) -> Result<Vec<Vector3<f64>>, String> {
-    p.mesh
-        .node_ids
-        .iter()
-        .map(|id| {
-            r.displacements
-                .get(id)
-                .copied()
-                .ok_or_else(|| format!("{what}: node {id} has no reference displacement"))
-        })
-        .collect()
-}
-
 /// The DR tolerance of the runs compared with CalculiX (mm).
 pub const CCX_DR_TOLERANCE: f64 = 1e-4;
 
@@ -475,11 +427,6 @@ fn calculix_without_contact(add: &mut dyn FnMut(Row)) -> Result<(), String> {
     Ok(())
 }
 
-/// Text for a Markdown table cell: a `|` (as in |u|) would end the cell.
-pub fn escape_cell(s: &str) -> String {
-    s.replace('|', "\\|")
-}
-
 /// The table as Markdown.
 pub fn markdown(rows: &[Row]) -> String {
     let mut s = String::from(
@@ -516,13 +463,7 @@ pub fn main(args: &[String]) -> Result<(), String> {
     }
     let table = markdown(&rows);
     let path = root().join("docs/validation.md");
-    let doc = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let (begin, end) = ("<!-- table:begin -->", "<!-- table:end -->");
-    let (Some(a), Some(b)) = (doc.find(begin), doc.find(end)) else {
-        return Err(format!("{}: missing the {begin} / {end} markers", path.display()));
-    };
-    let updated = format!("{}{begin}\n{table}{}", &doc[..a], &doc[b..]);
-    std::fs::write(&path, updated).map_err(|e| format!("{}: {e}", path.display()))?;
+    replace_block(&path, "table", &table)?;
     let failed = rows.iter().filter(|r| !r.pass()).count();
     println!("{} cases, {failed} failed; table written to {}", rows.len(), path.display());
     if failed > 0 {

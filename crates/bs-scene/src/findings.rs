@@ -3,6 +3,8 @@
 //! the advice schema ([`Findings`]) that `cargo xtask chart` writes to
 //! `data/speed-accuracy.json` and `brainshift check` reads back (embedded at build time).
 
+use std::fmt::Write as _;
+
 use serde::{Deserialize, Serialize};
 
 const DATA: &str = include_str!("../data/speed-accuracy.json");
@@ -97,6 +99,137 @@ pub fn cheapest(points: &[ChartPoint], target: f64) -> Option<&ChartPoint> {
         .iter()
         .filter(|p| !p.is_reference && p.solver != "calculix" && p.mean_error <= target)
         .min_by(|a, b| a.seconds.total_cmp(&b.seconds))
+}
+
+/// The points as CSV (one row each).
+/// The points as CSV (one row per point; the mesh diagonal is not stored).
+pub fn to_csv(points: &[ChartPoint]) -> String {
+    let mut s = String::from(
+        "case,series,level,element,solver,handler,tolerance_mm,nodes,mean_edge_mm,seconds,steps,\
+         mean_error_mm,max_error_mm,mean_error_vs_ccx_k10_mm,reference\n",
+    );
+    for p in points {
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{},{},{:e},{},{:.3},{:.3},{},{:.4e},{:.4e},{},{}",
+            p.case,
+            p.series,
+            p.level,
+            p.element,
+            p.solver,
+            p.handler,
+            p.tolerance,
+            p.nodes,
+            p.mean_edge,
+            p.seconds,
+            p.steps,
+            p.mean_error,
+            p.max_error,
+            p.mean_error_ccx.map_or(String::new(), |e| format!("{e:.4e}")),
+            p.is_reference
+        );
+    }
+    s
+}
+
+/// The findings of a case: the cheapest configuration per target and the Pareto front.
+pub fn markdown(case: &str, points: &[ChartPoint]) -> String {
+    let mut s = format!("### {case}\n\n");
+    if let Some(r) = points.iter().find(|p| p.is_reference) {
+        let _ = writeln!(
+            s,
+            "Reference: {} ({} nodes, mean edge {:.2} mm), {:.1} s, {} steps.\n",
+            r.label(),
+            r.nodes,
+            r.mean_edge,
+            r.seconds,
+            r.steps
+        );
+    }
+    s.push_str("| target (mean error) | cheapest configuration | time (s) | mean / max error (mm) |\n|---|---|---:|---|\n");
+    for t in TARGETS {
+        match cheapest(points, t) {
+            Some(p) => {
+                let _ = writeln!(
+                    s,
+                    "| ≤ {t} mm | {} (mean edge {:.2} mm) | {:.2} | {:.3} / {:.3} |",
+                    p.label(),
+                    p.mean_edge,
+                    p.seconds,
+                    p.mean_error,
+                    p.max_error
+                );
+            }
+            None => {
+                let _ = writeln!(s, "| ≤ {t} mm | none measured meets it | | |");
+            }
+        }
+    }
+    s.push_str("\nPareto front (fastest first):\n\n| configuration | time (s) | mean error (mm) | vs CalculiX K=10 (mm) |\n|---|---:|---:|---:|\n");
+    for i in pareto_front(points) {
+        let p = &points[i];
+        let _ = writeln!(
+            s,
+            "| {} | {:.2} | {:.3e} | {} |",
+            p.label(),
+            p.seconds,
+            p.mean_error,
+            p.mean_error_ccx.map_or("–".into(), |e| format!("{e:.3e}"))
+        );
+    }
+    for p in points.iter().filter(|p| p.solver == "calculix") {
+        let _ = writeln!(
+            s,
+            "\n{}: {:.1} s (stored run time), mean error {:.3e} mm, max {:.3e} mm.",
+            p.label(),
+            p.seconds,
+            p.mean_error,
+            p.max_error
+        );
+    }
+    s
+}
+
+/// Points read back from [`to_csv`]'s text (`source` names it in messages); the diagonal of
+/// each mesh level comes from `diagonal_of(level)`.
+pub fn from_csv(
+    text: &str,
+    source: &str,
+    diagonal_of: &dyn Fn(&str) -> f64,
+) -> Result<Vec<ChartPoint>, String> {
+    let mut points = Vec::new();
+    for (n, line) in text.lines().enumerate().skip(1) {
+        let bad = |what: &str| format!("{source}:{}: {what}", n + 1);
+        let f: Vec<&str> = line.split(',').collect();
+        if f.len() != 15 {
+            return Err(bad("expected 15 columns"));
+        }
+        let num = |i: usize| {
+            f[i].parse::<f64>().map_err(|_| bad(&format!("column {} is not a number", i + 1)))
+        };
+        let int = |i: usize| {
+            f[i].parse::<usize>().map_err(|_| bad(&format!("column {} is not a count", i + 1)))
+        };
+        points.push(ChartPoint {
+            case: f[0].into(),
+            series: f[1].into(),
+            level: f[2].into(),
+            element: f[3].into(),
+            solver: f[4].into(),
+            handler: f[5].into(),
+            tolerance: num(6)?,
+            nodes: int(7)?,
+            mean_edge: num(8)?,
+            diagonal: diagonal_of(f[2]),
+            seconds: num(9)?,
+            steps: int(10)?,
+            mean_error: num(11)?,
+            max_error: num(12)?,
+            mean_error_ccx: if f[13].is_empty() { None } else { Some(num(13)?) },
+            is_reference: f[14] == "true",
+        });
+    }
+    Ok(points)
 }
 
 /// The chart's findings.
@@ -292,5 +425,15 @@ mod tests {
             f.cases[0].targets.iter().map(|t| (t.target_mm, t.seconds)).collect();
         assert_eq!(t, vec![(0.1, 3.0), (0.5, 1.0)]);
         assert_eq!(f.cases[0].reference_seconds, 9.0);
+    }
+
+    /// The CSV the chart writes reads back to the same points (numbers at the precision it
+    /// prints).
+    #[test]
+    fn points_round_trip_through_csv() {
+        let mut p = point(1.25, 0.0123);
+        p.mean_error_ccx = Some(0.5);
+        let back = from_csv(&to_csv(std::slice::from_ref(&p)), "t", &|_| 1.0).unwrap();
+        assert_eq!(back, vec![p]);
     }
 }

@@ -14,7 +14,10 @@
 //! * [`run`] and [`output`]: the verified run of a scene and its three files;
 //! * [`check`]: everything `run` does before solving, with [`memory`] and [`advice`];
 //! * [`study`]: one scene solved with variations (what validation, charts and stability
-//!   maps measure) and [`findings`]: the speed-versus-accuracy results, typed end to end.
+//!   maps measure), [`verdict`]: how such a run ended, and [`findings`]: the
+//!   speed-versus-accuracy results, typed end to end.
+//!
+//! [`calculix`] writes a scene as a CalculiX deck and reads the reference solutions back.
 //!
 //! Every error is a [`SceneError`] naming the file and the key, set, node or element.
 //!
@@ -30,6 +33,7 @@
 
 pub mod advice;
 pub mod boundary;
+pub mod calculix;
 pub mod check;
 pub mod compose;
 mod error;
@@ -43,6 +47,7 @@ pub mod scene;
 pub mod skull_contact;
 pub mod solve;
 pub mod study;
+pub mod verdict;
 pub mod verify;
 
 pub use error::SceneError;

@@ -1,0 +1,295 @@
+//! CalculiX, the independent reference: a scene written as a CalculiX deck (the same brain
+//! mesh, the same Neo-Hookean law, the rigid skull as fixed wedges with penalty contact),
+//! CalculiX's printed displacements read back, and the stored reference solutions
+//! (`fixtures/<case>/reference/TAG.{json,csv}`) read for comparison. Running ccx is the
+//! driver's job (`cargo xtask reference`); the formats live here, side by side.
+
+use std::collections::HashMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+use bs_mesh::{ElementKind, Point3, Vector3};
+
+use crate::prepare::Prepared;
+use crate::scene::MaterialModel;
+
+/// A CalculiX input deck built from a scene.
+#[derive(Debug)]
+pub struct Deck {
+    /// The control file (`job.inp`), which includes the two mesh files.
+    pub control: String,
+    /// Brain nodes, elements and sets (`brain.inp`).
+    pub brain: String,
+    /// Skull wedge nodes and elements (`skull.inp`).
+    pub skull: String,
+}
+
+impl Deck {
+    /// The deck of a prepared scene with contact of penalty slope `k` (force per length³),
+    /// or without the skull when `k` is `None`.
+    pub fn new(p: &Prepared, k: Option<f64>) -> Result<Deck, String> {
+        let skull = p.skull.as_ref().ok_or("the scene has no skull: nothing to compare")?;
+        let (tets, hexes) = p.mesh.count_by_kind();
+        if hexes > 0 || tets == 0 {
+            return Err("CalculiX references are written for tetrahedral meshes (C3D4)".into());
+        }
+        let composed = crate::compose::compose(p).map_err(|e| e.to_string())?;
+        // Stresses in N per length unit squared: Pa × (metres per unit)².
+        let stress = p.scene.units.metres().powi(2);
+        let mut brain = String::new();
+        let nid = |i: usize| p.mesh.node_ids[i];
+        brain.push_str("*NODE, NSET=NBRAIN\n");
+        for (i, x) in p.mesh.nodes.iter().enumerate() {
+            let _ = writeln!(brain, "{}, {:.12e}, {:.12e}, {:.12e}", nid(i), x.x, x.y, x.z);
+        }
+        for (r, region) in p.scene.regions.iter().enumerate() {
+            let _ = writeln!(brain, "*ELEMENT, TYPE=C3D4, ELSET=REGION{r}");
+            for (e, el) in p.mesh.elements.iter().enumerate() {
+                if p.region_of_element[e] == r {
+                    debug_assert_eq!(el.kind(), ElementKind::Tet4);
+                    let n = el.nodes();
+                    let _ = writeln!(
+                        brain,
+                        "{}, {}, {}, {}, {}",
+                        p.mesh.element_ids[e],
+                        nid(n[0]),
+                        nid(n[1]),
+                        nid(n[2]),
+                        nid(n[3])
+                    );
+                }
+            }
+            if region.material.model != MaterialModel::NeoHookean {
+                return Err(format!(
+                    "region '{}': only Neo-Hookean regions have a CalculiX counterpart here",
+                    region.elset
+                ));
+            }
+        }
+        brain.push_str("*NSET, NSET=SLAVES\n");
+        write_ids(&mut brain, composed.slaves.iter().map(|&i| nid(i)));
+
+        // Skull wedges: ids above every brain id.
+        let node_base = p.mesh.node_ids.iter().max().copied().unwrap_or(0) + 1;
+        let elem_base = p.mesh.element_ids.iter().max().copied().unwrap_or(0) + 1;
+        let bbox = skull.bounding_box().ok_or("empty skull")?;
+        let thickness = 0.02 * (bbox.1 - bbox.0).norm();
+        let nv = skull.vertices.len() as u64;
+        let mut sk = String::from("*NODE, NSET=NSKULL\n");
+        for (v, x) in skull.vertices.iter().enumerate() {
+            let _ =
+                writeln!(sk, "{}, {:.12e}, {:.12e}, {:.12e}", node_base + v as u64, x.x, x.y, x.z);
+        }
+        // Each wedge is a right prism over its triangle with its own top nodes (offset along
+        // the face normal), so no wedge can invert where the skull is concave; the bottom
+        // nodes are shared, so the master surface is the skull itself.
+        for (t, tri) in skull.triangles.iter().enumerate() {
+            let offset = skull.area_normal(t).normalize() * thickness;
+            for (j, &v) in tri.iter().enumerate() {
+                let y: Point3<f64> = skull.vertices[v] + offset;
+                let id = node_base + nv + 3 * t as u64 + j as u64;
+                let _ = writeln!(sk, "{id}, {:.12e}, {:.12e}, {:.12e}", y.x, y.y, y.z);
+            }
+        }
+        // Bottom face 1-2-3 = the skull triangle, whose right-hand normal points outward,
+        // towards the top face 4-5-6: a positive-volume C3D6 whose face S1 faces the brain.
+        sk.push_str("*ELEMENT, TYPE=C3D6, ELSET=SKULL\n");
+        for (t, tri) in skull.triangles.iter().enumerate() {
+            let [a, b, c] = tri.map(|v| node_base + v as u64);
+            let top = node_base + nv + 3 * t as u64;
+            let _ = writeln!(
+                sk,
+                "{}, {a}, {b}, {c}, {}, {}, {}",
+                elem_base + t as u64,
+                top,
+                top + 1,
+                top + 2
+            );
+        }
+        sk.push_str("*SURFACE, NAME=MASTER\n");
+        for t in 0..skull.triangles.len() {
+            let _ = writeln!(sk, "{}, S1", elem_base + t as u64);
+        }
+
+        let mut c = String::new();
+        let _ = writeln!(
+            c,
+            "** brainshift reference deck (cargo xtask reference): CalculiX 2.20.\n\
+             ** brain.inp and skull.inp are written next to it by the same command.\n\
+             ** Units: length {}, force N, stress N/{}^2.\n\
+             *HEADING\nbrainshift reference, {}",
+            p.scene.units.symbol(),
+            p.scene.units.symbol(),
+            k.map_or("no contact".to_string(), |k| format!("penalty slope K = {k}"))
+        );
+        c.push_str("*INCLUDE, INPUT=brain.inp\n*INCLUDE, INPUT=skull.inp\n");
+        for (r, region) in p.scene.regions.iter().enumerate() {
+            let m = region.material.moduli()?;
+            let (mu, kappa) = (m.mu * stress, m.kappa * stress);
+            let _ = writeln!(
+                c,
+                "*MATERIAL, NAME=M{r}\n*HYPERELASTIC, NEO HOOKE\n{:.12e}, {:.12e}\n\
+                 *SOLID SECTION, ELSET=REGION{r}, MATERIAL=M{r}",
+                mu / 2.0,
+                2.0 / kappa
+            );
+        }
+        // The wedges are fixed: their material only has to make a valid section.
+        c.push_str(
+            "*MATERIAL, NAME=RIGID\n*ELASTIC\n1000.0, 0.3\n*SOLID SECTION, ELSET=SKULL, \
+             MATERIAL=RIGID\n",
+        );
+        if let Some(k) = k {
+            let _ = writeln!(
+                c,
+                "*SURFACE, NAME=SLAVE, TYPE=NODE\nSLAVES\n\
+             *SURFACE INTERACTION, NAME=SKULLCONTACT\n\
+             *SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR\n{k:e}, 1.0e-9\n\
+             *CONTACT PAIR, INTERACTION=SKULLCONTACT, TYPE=NODE TO SURFACE\nSLAVE, MASTER"
+            );
+        }
+        c.push_str("*BOUNDARY\nNSKULL, 1, 3\n");
+        for (i, comps) in p.prescribed.iter().enumerate() {
+            for (d, v) in comps.iter().enumerate() {
+                if *v == Some(0.0) {
+                    let _ = writeln!(c, "{}, {}, {}", nid(i), d + 1, d + 1);
+                }
+            }
+        }
+        c.push_str("*STEP, NLGEOM, INC=10000\n*STATIC\n0.02, 1.0, 1e-7, 0.05\n*BOUNDARY\n");
+        for (i, comps) in p.prescribed.iter().enumerate() {
+            for (d, v) in comps.iter().enumerate() {
+                if let Some(v) = v.filter(|v| *v != 0.0) {
+                    let _ = writeln!(c, "{}, {}, {}, {v:.12e}", nid(i), d + 1, d + 1);
+                }
+            }
+        }
+        c.push_str("*NODE PRINT, NSET=NBRAIN\nU\n*END STEP\n");
+        Ok(Deck { control: c, brain, skull: sk })
+    }
+
+    /// Writes `job.inp`, `brain.inp` and `skull.inp` into `dir`.
+    pub fn write(&self, dir: &Path) -> Result<(), String> {
+        for (name, text) in
+            [("job.inp", &self.control), ("brain.inp", &self.brain), ("skull.inp", &self.skull)]
+        {
+            let path = dir.join(name);
+            std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
+        }
+        Ok(())
+    }
+}
+
+fn write_ids(out: &mut String, ids: impl Iterator<Item = u64>) {
+    let ids: Vec<u64> = ids.collect();
+    for chunk in ids.chunks(12) {
+        let line: Vec<String> = chunk.iter().map(u64::to_string).collect();
+        let _ = writeln!(out, "{},", line.join(", "));
+    }
+}
+
+/// One printed increment: its step time and the displacements by node id.
+pub type DatBlock = (f64, Vec<(u64, [f64; 3])>);
+
+/// Parses the last `displacements (vx,vy,vz)` block of a .dat file.
+pub fn parse_dat(text: &str) -> Option<DatBlock> {
+    let mut last: Option<DatBlock> = None;
+    let mut current: Option<DatBlock> = None;
+    for line in text.lines() {
+        let t = line.trim();
+        if t.starts_with("displacements (vx,vy,vz)") {
+            if let Some(c) = current.take() {
+                last = Some(c);
+            }
+            let time = t.rsplit("time").next().and_then(|s| s.trim().parse::<f64>().ok());
+            current = Some((time.unwrap_or(f64::NAN), Vec::new()));
+            continue;
+        }
+        let Some((_, rows)) = current.as_mut() else { continue };
+        let f: Vec<&str> = t.split_whitespace().collect();
+        if f.len() == 4
+            && let (Ok(id), Ok(x), Ok(y), Ok(z)) =
+                (f[0].parse::<u64>(), f[1].parse(), f[2].parse(), f[3].parse())
+        {
+            rows.push((id, [x, y, z]));
+            continue;
+        }
+        if !t.is_empty() && !rows.is_empty() {
+            // Another block starts: close this one.
+            last = current.take();
+        }
+    }
+    current.or(last)
+}
+
+/// A stored CalculiX result: displacements by node id and its metadata.
+#[derive(Debug, Clone)]
+pub struct Reference {
+    /// Displacements by node id.
+    pub displacements: HashMap<u64, Vector3<f64>>,
+    /// Its metadata (ccx version, contact slope, wall time, outcome).
+    pub meta: serde_json::Value,
+}
+
+/// Reads `TAG.json` and `TAG.csv` of a reference folder; `None` when the case has none.
+pub fn read_reference(dir: &Path, tag: &str) -> Result<Option<Reference>, String> {
+    let meta_path = dir.join(format!("{tag}.json"));
+    let Ok(meta_text) = std::fs::read_to_string(&meta_path) else { return Ok(None) };
+    let meta: serde_json::Value =
+        serde_json::from_str(&meta_text).map_err(|e| format!("{}: {e}", meta_path.display()))?;
+    let csv_path = dir.join(format!("{tag}.csv"));
+    let Ok(text) = std::fs::read_to_string(&csv_path) else {
+        return Ok(Some(Reference { displacements: HashMap::new(), meta }));
+    };
+    let mut displacements = HashMap::new();
+    for (n, line) in text.lines().enumerate().skip(1) {
+        let bad = || format!("{}:{}: expected node_id,ux,uy,uz", csv_path.display(), n + 1);
+        let f: Vec<&str> = line.split(',').collect();
+        if f.len() != 4 {
+            return Err(bad());
+        }
+        let id: u64 = f[0].parse().map_err(|_| bad())?;
+        let v: Vec<f64> =
+            f[1..].iter().map(|s| s.parse::<f64>()).collect::<Result<_, _>>().map_err(|_| bad())?;
+        displacements.insert(id, Vector3::new(v[0], v[1], v[2]));
+    }
+    Ok(Some(Reference { displacements, meta }))
+}
+
+/// The reference field in mesh node order.
+pub fn field(p: &Prepared, r: &Reference, what: &str) -> Result<Vec<Vector3<f64>>, String> {
+    p.mesh
+        .node_ids
+        .iter()
+        .map(|id| {
+            r.displacements
+                .get(id)
+                .copied()
+                .ok_or_else(|| format!("{what}: node {id} has no reference displacement"))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two printed increments: the parser keeps the last one, with its step time.
+    #[test]
+    fn parses_the_last_displacement_block() {
+        let dat = "
+ displacements (vx,vy,vz) for set NBRAIN and time  0.5000000E+00
+
+         1  1.000000E-01  0.000000E+00 -2.000000E-01
+         2  0.000000E+00  3.000000E-01  0.000000E+00
+
+ displacements (vx,vy,vz) for set NBRAIN and time  0.1000000E+01
+
+         1  2.000000E-01  0.000000E+00 -4.000000E-01
+         2 -1.000000E-03  6.000000E-01  5.000000E-02
+";
+        let (time, rows) = parse_dat(dat).unwrap();
+        assert_eq!(time, 1.0);
+        assert_eq!(rows, vec![(1, [0.2, 0.0, -0.4]), (2, [-1e-3, 0.6, 0.05])]);
+    }
+}
