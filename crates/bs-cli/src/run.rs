@@ -4,6 +4,7 @@
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use bs_dr::Progress;
@@ -74,6 +75,28 @@ impl Reporter {
     }
 }
 
+/// Set by SIGINT or SIGTERM; the solve stops at its next step.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// Exit status of an interrupted run (128 + SIGINT, the shell's convention).
+const INTERRUPTED_EXIT: i32 = 130;
+
+/// Catches SIGINT and SIGTERM so that an interrupted run stops between steps, says where it
+/// was and exits before anything is written (outputs are written only after a verified
+/// solve, each atomically).
+fn catch_interrupts() {
+    // A second handler cannot be installed (e.g. in-process tests): the default (the
+    // process ends, nothing written yet) is then kept.
+    let _ = ctrlc::set_handler(|| INTERRUPTED.store(true, Ordering::SeqCst));
+}
+
+fn stop_if_interrupted(what: &str) {
+    if INTERRUPTED.load(Ordering::SeqCst) {
+        eprintln!("interrupted {what}; nothing written");
+        std::process::exit(INTERRUPTED_EXIT);
+    }
+}
+
 /// Runs a scene end to end.
 pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
     let started = Instant::now();
@@ -88,8 +111,10 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
             .build_global()
             .map_err(|e| format!("cannot start {n} threads: {e}"))?;
     }
+    catch_interrupts();
     let prepared = Prepared::load(&opts.scene)?;
     let mut run = Run::prepare(prepared)?;
+    stop_if_interrupted("during preparation");
     let threads = rayon::current_num_threads();
     let (p, c) = (&run.prepared, &run.composed);
     if !opts.quiet {
@@ -110,7 +135,19 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
     }
     let every = if run.settings.kind == SolverKind::Dr { 50 } else { 1 };
     let mut reporter = Reporter::new(opts.quiet, run.settings.tolerance, every);
-    let solved = run.solve(&mut |pr| reporter.update(pr));
+    let solved = run.solve(&mut |pr| {
+        if INTERRUPTED.load(Ordering::SeqCst) {
+            reporter.finish();
+            stop_if_interrupted(&format!(
+                "at step {} (load {:.1} %, error estimate {:.3e}, tolerance {:.1e})",
+                pr.step,
+                100.0 * pr.load_factor,
+                pr.err,
+                reporter.tolerance
+            ));
+        }
+        reporter.update(pr)
+    });
     reporter.finish();
     let solved = solved?;
     let ctx = RunContext { total_seconds: started.elapsed().as_secs_f64(), threads };

@@ -173,6 +173,88 @@ fn zero_threads_are_refused() {
     assert!(!out.exists(), "nothing may be written");
 }
 
+/// A run interrupted by SIGINT (or SIGTERM) mid-solve stops between steps, says which step
+/// and error it reached, exits 130 and writes nothing.
+#[cfg(unix)]
+#[test]
+fn an_interrupted_run_writes_nothing_and_says_where_it_stopped() {
+    use std::io::BufRead;
+    use std::process::{Command, Stdio};
+    for signal in ["INT", "TERM"] {
+        let dir = TempDir::new(&format!("interrupted-{signal}"));
+        // The MNI152 scene with Dynamic Relaxation: thousands of steps, many seconds.
+        let fixture = root().join("fixtures/mni152");
+        let text = std::fs::read_to_string(fixture.join("scene.toml"))
+            .unwrap()
+            .replace("\"brain.inp\"", &format!("{:?}", fixture.join("brain.inp")))
+            .replace("\"skull.off\"", &format!("{:?}", fixture.join("skull.off")))
+            .replace("kind = \"newton-krylov\"", "kind = \"dr\"");
+        assert!(text.contains("kind = \"dr\""));
+        let scene = dir.0.join("scene.toml");
+        std::fs::write(&scene, text).unwrap();
+        let out = dir.0.join("out");
+        let mut child = Command::new(env!("CARGO_BIN_EXE_brainshift"))
+            .args(["run", scene.to_str().unwrap(), "--out", out.to_str().unwrap()])
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
+        // Wait for the first progress line: the solve is under way.
+        let mut seen = Vec::new();
+        for line in lines.by_ref() {
+            let line = line.unwrap();
+            let started = line.trim_start().starts_with("step");
+            seen.push(line);
+            if started {
+                break;
+            }
+        }
+        assert!(seen.last().is_some_and(|l| l.trim_start().starts_with("step")), "{seen:?}");
+        let pid = child.id().to_string();
+        assert!(
+            Command::new("kill").args([&format!("-{signal}"), &pid]).status().unwrap().success()
+        );
+        let rest: Vec<String> = lines.map(Result::unwrap).collect();
+        let status = child.wait().unwrap();
+        let err = rest.join("\n");
+        assert_eq!(status.code(), Some(130), "SIG{signal}: {err}");
+        assert!(err.contains("interrupted at step "), "SIG{signal}: {err}");
+        assert!(err.contains("nothing written"), "SIG{signal}: {err}");
+        let written: Vec<_> = std::fs::read_dir(&out)
+            .map(|d| d.flatten().map(|e| e.path()).collect())
+            .unwrap_or_default();
+        assert!(written.is_empty(), "SIG{signal}: partial outputs {written:?}");
+    }
+}
+
+/// The same scene gives byte-identical displacements for 1 and 2 threads and across
+/// repeated runs (the force assembly gathers in a fixed order; no atomics in sums).
+#[test]
+fn displacements_are_identical_for_any_thread_count_and_every_run() {
+    let dir = TempDir::new("determinism");
+    let scene = root().join("fixtures/sphere-shell/scene.toml");
+    let mut files = Vec::new();
+    for (k, threads) in ["1", "2", "2", "1"].iter().enumerate() {
+        let out = dir.0.join(format!("run{k}"));
+        let o = brainshift(&[
+            "run",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--threads",
+            threads,
+            "--quiet",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        files.push(std::fs::read(out.join("displacements.csv")).unwrap());
+    }
+    assert!(files[0].len() > 1000);
+    for (k, f) in files.iter().enumerate().skip(1) {
+        assert!(f == &files[0], "run {k} differs from run 0");
+    }
+}
+
 fn cube_mesh(element: &str) -> bs_mesh::Mesh {
     let file = if element == "h8" { "cube-h8.msh" } else { "cube-t4.msh" };
     bs_mesh::io::read_mesh(&root().join("fixtures/basic").join(file)).unwrap()
