@@ -84,8 +84,37 @@ pub fn run(scope: Scope) -> Result<Vec<Row>, String> {
     if scope == Scope::Full {
         handler_solves(&mut add)?;
         calculix(&mut add)?;
+        determinism(&mut add)?;
     }
     Ok(rows)
+}
+
+/// The bundled MNI152 scene solved on one thread and on two: the displacements must be
+/// bit-identical (every parallel sum gathers in a fixed order).
+fn determinism(add: &mut dyn FnMut(Row)) -> Result<(), String> {
+    let p = load("fixtures/mni152/scene.toml")?;
+    let on = |threads: usize| -> Result<Outcome, String> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| e.to_string())?;
+        pool.install(|| solve(&p, &Variant::default(), "determinism"))
+    };
+    let (one, two) = (on(1)?, on(2)?);
+    let differing = one
+        .displacements
+        .iter()
+        .zip(&two.displacements)
+        .filter(|(a, b)| a.iter().zip(b.iter()).any(|(x, y)| x.to_bits() != y.to_bits()))
+        .count();
+    add(Row {
+        case: "determinism / mni152 newton-krylov".into(),
+        quantity: "nodes not bit-identical, 1 vs 2 threads".into(),
+        value: differing as f64,
+        tolerance: 0.0,
+        unit: "",
+    });
+    Ok(())
 }
 
 /// Uniaxial compression (10 %, symmetry planes, lateral faces free) and simple shear
