@@ -56,16 +56,18 @@ impl bs_dr::Contact for SkullContact {
                     feature: SurfaceFeature::Vertex,
                 });
             }
-            Some(proj) if proj.distance.abs() <= reach && proj.feature.is_some() => Some(proj),
+            Some(proj) if proj.signed_distance.abs() <= reach && proj.feature.is_some() => {
+                Some(proj)
+            }
             _ => self.exact.project_exact(p),
         };
         let master = self.exact.master();
         let result = proj.and_then(|proj| {
             let feature = match proj.feature? {
-                Feature::Face(f) => SurfaceFeature::Face(master.face_normals[f as usize]),
+                Feature::Face(f) => SurfaceFeature::Face(master.face_normals()[f as usize]),
                 Feature::Edge(e) => {
-                    let [a, b] = master.edges[e as usize];
-                    let t = master.vertices[b as usize] - master.vertices[a as usize];
+                    let [a, b] = master.edges()[e as usize];
+                    let t = master.vertices()[b as usize] - master.vertices()[a as usize];
                     SurfaceFeature::Edge(t.normalize())
                 }
                 Feature::Node(_) => SurfaceFeature::Vertex,
@@ -87,7 +89,7 @@ pub struct Composed {
     /// Slave nodes: boundary nodes of the brain without prescribed components.
     pub slaves: Vec<usize>,
     /// The skull's precomputed surface (for gap checks), if the scene has contact.
-    pub master: Option<MasterSurface>,
+    pub master: Option<Arc<MasterSurface>>,
     /// Exact closest points on the skull at any distance (the initial and final checks, and
     /// the Newton–Krylov solver's queries), if the scene has contact.
     pub exact: Option<Arc<ParryContact>>,
@@ -187,14 +189,19 @@ pub fn compose_with(p: &Prepared, opts: &ComposeOptions) -> Result<Composed, Che
 
     let (master, contact, exact) = match (&p.skull, &p.scene.contact) {
         (Some(skull), Some(c)) => {
-            let master = MasterSurface::new(skull)
-                .map_err(|e| CheckError(format!("{}: {e}", c.skull.display())))?;
-            let handler = Handler::new(algorithm(c.algorithm), skull, opts.contact)
-                .map_err(|e| CheckError(format!("{}: {e}", c.skull.display())))?;
+            // One validated master surface per run, shared by the handler and the exact
+            // projection.
+            let master = Arc::new(
+                MasterSurface::new(skull)
+                    .map_err(|e| CheckError(format!("{}: {e}", c.skull.display())))?,
+            );
+            let handler =
+                Handler::from_master(algorithm(c.algorithm), master.clone(), opts.contact)
+                    .map_err(|e| CheckError(format!("{}: {e}", c.skull.display())))?;
             let enforcer = Enforcer::new(handler, slaves.clone(), model.node_count())
                 .map_err(|e| CheckError(e.to_string()))?;
             let exact = Arc::new(
-                ParryContact::from_master(&master)
+                ParryContact::from_master(master.clone())
                     .map_err(|e| CheckError(format!("{}: {e}", c.skull.display())))?,
             );
             (
@@ -261,7 +268,7 @@ pub fn exact_gaps(
     points
         .map(|q| match exact.project_exact(&q) {
             Some(pr) => bs_contact::GapRow {
-                signed_distance: pr.distance,
+                signed_distance: pr.signed_distance,
                 closest: pr.point,
                 outside: pr.outside,
             },
