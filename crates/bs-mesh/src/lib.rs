@@ -23,6 +23,7 @@ pub mod io;
 mod locate;
 mod mesh;
 pub mod quality;
+pub mod rng;
 pub mod structured;
 mod surface;
 mod validate;
