@@ -160,16 +160,16 @@ fn bench_all(skull: &TriSurface, s: &Scenario) -> Result<(Runs, String), String>
     let info = format!(
         "{} nodes, {} faces, longest edge {:.2} mm, d = {:.2} mm, buckets {:?} of {:.2}×{:.2}×{:.2} mm, \
          additional lists {:.2} edges + {:.2} faces per node, preprocessing {:.0} ms (+{:.0} ms coherence tables)",
-        m.vertices.len(),
-        m.triangles.len(),
-        m.max_edge,
+        m.vertices().len(),
+        m.triangles().len(),
+        m.max_edge(),
         paper.max_step_penetration(),
         paper.grid().dims,
         paper.grid().h.x,
         paper.grid().h.y,
         paper.grid().h.z,
-        lists.edges.len() as f64 / m.vertices.len() as f64,
-        lists.faces.len() as f64 / m.vertices.len() as f64,
+        lists.edges.len() as f64 / m.vertices().len() as f64,
+        lists.faces.len() as f64 / m.vertices().len() as f64,
         prep_paper * 1e3,
         prep_coherent * 1e3,
     );
@@ -192,7 +192,10 @@ fn bench_all(skull: &TriSurface, s: &Scenario) -> Result<(Runs, String), String>
                     STEPS,
                 ),
             ),
-            ("parry", run(|| ParryContact::from_master(&m).expect("validated mesh"), s, STEPS)),
+            (
+                "parry",
+                run(|| ParryContact::from_master(m.clone()).expect("validated mesh"), s, STEPS),
+            ),
             ("brute-force", run(|| BruteForce::from_master(m.clone()), s, BRUTE_STEPS)),
         ];
         if runs.is_empty() {

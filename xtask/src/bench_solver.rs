@@ -21,74 +21,12 @@ use bs_dr::{
     Solid, Solver, TetFormulation,
 };
 use bs_material::Material;
-use bs_mesh::{Element, Mesh, Point3, Vector3};
+use bs_mesh::{Mesh, Vector3};
 
-fn grid_nodes(n: usize, jitter: f64) -> Vec<Point3<f64>> {
-    let h = 1.0 / n as f64;
-    let mut state = 0x2545_f491_4f6c_dd1du64;
-    let mut rnd = || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let mut nodes = Vec::with_capacity((n + 1).pow(3));
-    for k in 0..=n {
-        for j in 0..=n {
-            for i in 0..=n {
-                let mut p = Point3::new(i as f64 * h, j as f64 * h, k as f64 * h);
-                if i > 0 && i < n && j > 0 && j < n && k > 0 && k < n {
-                    for c in 0..3 {
-                        p[c] += jitter * h * (2.0 * rnd() - 1.0);
-                    }
-                }
-                nodes.push(p);
-            }
-        }
-    }
-    nodes
-}
-
-fn cell(n: usize, i: usize, j: usize, k: usize) -> [usize; 8] {
-    let id = |i: usize, j: usize, k: usize| i + (n + 1) * (j + (n + 1) * k);
-    [
-        id(i, j, k),
-        id(i + 1, j, k),
-        id(i + 1, j + 1, k),
-        id(i, j + 1, k),
-        id(i, j, k + 1),
-        id(i + 1, j, k + 1),
-        id(i + 1, j + 1, k + 1),
-        id(i, j + 1, k + 1),
-    ]
-}
-
-/// Unit cube of `n³` cells; hexes, or 6 tets per cell (Kuhn split, conforming).
+/// Unit cube of `n³` cells, interior nodes jittered by up to 0.2 h; hexes, or 6 tets per
+/// cell (Kuhn split, conforming).
 fn cube(n: usize, tets: bool) -> Mesh {
-    let nodes = grid_nodes(n, 0.2);
-    let mut elements = Vec::new();
-    for k in 0..n {
-        for j in 0..n {
-            for i in 0..n {
-                let c = cell(n, i, j, k);
-                if tets {
-                    for p in [[1, 2], [1, 5], [4, 5], [4, 7], [3, 7], [3, 2]] {
-                        let mut t = [c[0], c[p[0]], c[p[1]], c[6]];
-                        let v = (nodes[t[1]] - nodes[t[0]])
-                            .cross(&(nodes[t[2]] - nodes[t[0]]))
-                            .dot(&(nodes[t[3]] - nodes[t[0]]));
-                        if v < 0.0 {
-                            t.swap(1, 2);
-                        }
-                        elements.push(Element::tet4(t));
-                    }
-                } else {
-                    elements.push(Element::hex8(c));
-                }
-            }
-        }
-    }
-    Mesh::new(nodes, elements)
+    bs_mesh::structured::jittered_box_mesh(n, 1.0, tets, 0.2, 1)
 }
 
 fn model(mesh: &Mesh, tet: TetFormulation) -> Model {

@@ -228,7 +228,7 @@ fn handler_queries(add: &mut dyn FnMut(Row)) -> Result<(), String> {
             bs_contact::Algorithm::Parry,
         ] {
             let mut h = Handler::new(alg, &s, PaperParams::default()).map_err(|e| e.to_string())?;
-            let reach = h.reach().min(2.0 * m.max_edge);
+            let reach = h.reach().min(2.0 * m.max_edge());
             let mut rng = Rng::new(7);
             let (mut worst, mut verdicts) = (0.0f64, 0usize);
             for i in 0..3000 {
@@ -236,7 +236,7 @@ fn handler_queries(add: &mut dyn FnMut(Row)) -> Result<(), String> {
                 let b = brute.project(&q);
                 match h.closest(i % 7, &q) {
                     Some(p) => {
-                        worst = worst.max((p.distance - b.distance).abs());
+                        worst = worst.max((p.signed_distance - b.signed_distance).abs());
                         verdicts += usize::from(p.outside != b.outside);
                     }
                     // "No correction needed": wrong only if brute force says outside.
@@ -247,7 +247,7 @@ fn handler_queries(add: &mut dyn FnMut(Row)) -> Result<(), String> {
             add(Row {
                 case: format!("contact query / {label} on {name}"),
                 quantity: "max |distance − brute force| / size".into(),
-                value: worst / m.size,
+                value: worst / m.size(),
                 tolerance: 1e-9,
                 unit: "",
             });

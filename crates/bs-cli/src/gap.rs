@@ -60,10 +60,13 @@ pub fn run(
 ) -> Result<ExitCode, Box<dyn std::error::Error>> {
     let skull = bs_mesh::io::read_surface(skull_path)?;
     let sk = skull_path.display();
-    let master = MasterSurface::new(&skull).map_err(|e| format!("{sk}: {e}"))?;
-    let mut handler =
-        Handler::new(bs_scene::compose::algorithm(algorithm), &skull, PaperParams::default())
-            .map_err(|e| format!("{sk}: {e}"))?;
+    let master = std::sync::Arc::new(MasterSurface::new(&skull).map_err(|e| format!("{sk}: {e}"))?);
+    let mut handler = Handler::from_master(
+        bs_scene::compose::algorithm(algorithm),
+        master.clone(),
+        PaperParams::default(),
+    )
+    .map_err(|e| format!("{sk}: {e}"))?;
     let (ids, points): (Vec<u64>, Vec<Point3<f64>>) = match query {
         Query::Mesh(path) => {
             let mesh = bs_mesh::io::read_mesh(path)?;

@@ -7,11 +7,11 @@ use bs_mesh::TriSurface;
 use nalgebra::Point3;
 
 use crate::ContactError;
-use crate::enforce::{ClosestPoint, Projection};
-use crate::geometry::closest_point_triangle;
 use crate::master::MasterSurface;
+use crate::query::{ClosestPoint, Projection};
 
-/// Exact closest point by testing every face: O(faces) per query.
+/// Exact closest point by testing every face: O(faces) per query
+/// ([`MasterSurface::project_exact`] behind the [`ClosestPoint`] seam).
 #[derive(Debug, Clone)]
 pub struct BruteForce {
     master: Arc<MasterSurface>,
@@ -23,7 +23,7 @@ impl BruteForce {
         Ok(Self::from_master(Arc::new(MasterSurface::new(surface)?)))
     }
 
-    /// Builds the handler on an already validated master surface.
+    /// Builds the handler on an already validated (shared) master surface.
     pub fn from_master(master: Arc<MasterSurface>) -> Self {
         Self { master }
     }
@@ -34,37 +34,22 @@ impl BruteForce {
     }
 
     /// Exact closest point of the surface to `p` (first face wins on exact ties) with the
-    /// paper's verdict at that point.
+    /// paper's verdict at that point. A non-finite `p` has none: it gets an infinite distance
+    /// at its own position, inside, with no feature.
     pub fn project(&self, p: &Point3<f64>) -> Projection {
-        let m = &*self.master;
-        let mut best = (f64::INFINITY, Point3::origin(), crate::Feature::Face(0));
-        for (t, tri) in m.triangles.iter().enumerate() {
-            let (q, region) = closest_point_triangle(
-                p,
-                &m.vertices[tri[0] as usize],
-                &m.vertices[tri[1] as usize],
-                &m.vertices[tri[2] as usize],
-            );
-            let d2 = (q - p).norm_squared();
-            if d2 < best.0 {
-                best = (d2, q, m.feature_of(t as u32, region));
-            }
-        }
-        let outside = m.is_outside(p, &best.1, best.2);
-        let dist = best.0.sqrt();
-        Projection {
-            point: best.1,
-            distance: if outside { -dist } else { dist },
-            outside,
-            feature: Some(best.2),
-        }
+        self.master.project_exact(p).unwrap_or(Projection {
+            point: *p,
+            signed_distance: f64::INFINITY,
+            outside: false,
+            feature: None,
+        })
     }
 }
 
 impl ClosestPoint for BruteForce {
     fn closest(&mut self, _slave: usize, p: &Point3<f64>) -> Option<Projection> {
         // A non-finite position (a diverged step) has no closest point: leave it alone.
-        p.coords.iter().all(|x| x.is_finite()).then(|| self.project(p))
+        self.master.project_exact(p)
     }
 
     fn name(&self) -> &'static str {

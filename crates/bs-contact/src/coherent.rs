@@ -39,9 +39,9 @@ use bs_mesh::TriSurface;
 use nalgebra::{Point3, Vector3};
 
 use crate::ContactError;
-use crate::enforce::{ClosestPoint, Projection};
 use crate::master::MasterSurface;
 use crate::paper::{PaperContact, PaperParams};
+use crate::query::{ClosestPoint, Projection};
 
 /// Per-slave cached state.
 #[derive(Debug, Clone, Copy)]
@@ -128,7 +128,7 @@ impl CoherentContact {
         };
         let mut plane_start = vec![0u32];
         let mut planes = Vec::new();
-        for c in 0..m.vertices.len() as u32 {
+        for c in 0..m.vertices().len() as u32 {
             let mut push = |n: &Vector3<f64>, x: &Point3<f64>| {
                 let u = unit(n);
                 planes.push((u, u.dot(&x.coords)));
@@ -136,19 +136,22 @@ impl CoherentContact {
             if m.is_used(c) {
                 for &f in m.faces_of(c).iter().chain(paper.lists.faces_of(c)) {
                     push(
-                        &m.face_normals[f as usize],
-                        &m.vertices[m.triangles[f as usize][0] as usize],
+                        &m.face_normals()[f as usize],
+                        &m.vertices()[m.triangles()[f as usize][0] as usize],
                     );
                 }
                 for &e in m.edges_of(c).iter().chain(paper.lists.edges_of(c)) {
-                    push(&m.edge_normals[e as usize], &m.vertices[m.edges[e as usize][0] as usize]);
+                    push(
+                        &m.edge_normals()[e as usize],
+                        &m.vertices()[m.edges()[e as usize][0] as usize],
+                    );
                 }
-                push(&m.node_normals[c as usize], &m.vertices[c as usize]);
+                push(&m.node_normals()[c as usize], &m.vertices()[c as usize]);
             }
             plane_start.push(planes.len() as u32);
         }
-        let abs_slack = 1e-12 * m.size;
-        let skin = m.max_edge;
+        let abs_slack = 1e-12 * m.size();
+        let skin = m.max_edge();
         Self {
             paper,
             plane_start,
@@ -199,7 +202,7 @@ impl CoherentContact {
 
     #[inline]
     fn anchor_at(&self, p: &Point3<f64>, c: u32, other_lb: f64, outside: bool) -> Anchor {
-        let d1 = (p - self.paper.master.vertices[c as usize]).norm();
+        let d1 = (p - self.paper.master.vertices()[c as usize]).norm();
         let node_margin = (0.5 * (other_lb - d1) * SAFETY).max(0.0);
         let skip = if outside {
             0.0
@@ -257,7 +260,7 @@ impl CoherentContact {
     #[inline]
     fn nearest_in_list(&self, l: &NodeList, p: &Point3<f64>) -> Option<(u32, f64)> {
         let delta = (p - l.at).norm() / SAFETY;
-        let verts = &self.paper.master.vertices;
+        let verts = &self.paper.master.vertices();
         let mut best = (u32::MAX, f64::INFINITY);
         let mut next = f64::INFINITY;
         for &id in &l.nodes[..l.len as usize] {

@@ -8,7 +8,8 @@ use bs_mesh::TriSurface;
 use nalgebra::{Point3, Vector3};
 
 use crate::ContactError;
-use crate::geometry::{TriRegion, corner_angle, triangle_normal};
+use crate::geometry::{TriRegion, closest_point_triangle, corner_angle, triangle_normal};
+use crate::query::Projection;
 
 /// How the normal at a node is formed from the normals of the faces around it.
 ///
@@ -45,45 +46,46 @@ pub enum Feature {
 }
 
 /// A validated, outward-oriented closed triangle surface with precomputed adjacency and
-/// normals. Shared by all handlers.
+/// normals. Built once per skull and shared by all handlers (`Arc<MasterSurface>`); read
+/// through its accessors, so that what was validated stays valid.
 #[derive(Debug, Clone)]
 pub struct MasterSurface {
     /// Vertex coordinates.
-    pub vertices: Vec<Point3<f64>>,
+    vertices: Vec<Point3<f64>>,
     /// Triangles, counter-clockwise seen from outside.
-    pub triangles: Vec<[u32; 3]>,
+    triangles: Vec<[u32; 3]>,
     /// Unique edges `[a, b]` with `a < b`.
-    pub edges: Vec<[u32; 2]>,
+    edges: Vec<[u32; 2]>,
     /// The two faces of each edge.
-    pub edge_faces: Vec<[u32; 2]>,
+    edge_faces: Vec<[u32; 2]>,
     /// For each face, the edge index of its sides `v0→v1`, `v1→v2`, `v2→v0`.
-    pub face_edges: Vec<[u32; 3]>,
+    face_edges: Vec<[u32; 3]>,
     /// Unit outward normal of each face.
-    pub face_normals: Vec<Vector3<f64>>,
+    face_normals: Vec<Vector3<f64>>,
     /// Outward edge normal: sum of the unit normals of its two faces.
-    pub edge_normals: Vec<Vector3<f64>>,
+    edge_normals: Vec<Vector3<f64>>,
     /// Outward node normal (see [`NodeNormalRule`]).
-    pub node_normals: Vec<Vector3<f64>>,
+    node_normals: Vec<Vector3<f64>>,
     /// Unit bisector of the angle at each corner of each face.
-    pub bisectors: Vec<[Vector3<f64>; 3]>,
+    bisectors: Vec<[Vector3<f64>; 3]>,
     /// Radius of influence of each node: the longest edge containing it (0 if unused).
-    pub node_radius: Vec<f64>,
+    node_radius: Vec<f64>,
     /// CSR offsets of node→faces.
-    pub node_faces_start: Vec<u32>,
+    node_faces_start: Vec<u32>,
     /// CSR list of node→faces.
-    pub node_faces: Vec<u32>,
+    node_faces: Vec<u32>,
     /// CSR offsets of node→edges.
-    pub node_edges_start: Vec<u32>,
+    node_edges_start: Vec<u32>,
     /// CSR list of node→edges.
-    pub node_edges: Vec<u32>,
+    node_edges: Vec<u32>,
     /// Longest edge length.
-    pub max_edge: f64,
+    max_edge: f64,
     /// Longest projection of an edge on each axis.
-    pub max_edge_projection: Vector3<f64>,
+    max_edge_projection: Vector3<f64>,
     /// Diagonal of the bounding box (the model size used for tolerances).
-    pub size: f64,
+    size: f64,
     /// The node normal rule used.
-    pub node_rule: NodeNormalRule,
+    node_rule: NodeNormalRule,
 }
 
 impl MasterSurface {
@@ -332,6 +334,90 @@ impl MasterSurface {
         })
     }
 
+    /// Vertex coordinates.
+    #[inline]
+    pub fn vertices(&self) -> &[Point3<f64>] {
+        &self.vertices
+    }
+
+    /// Triangles, counter-clockwise seen from outside.
+    #[inline]
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
+    /// Unique edges `[a, b]` with `a < b`.
+    #[inline]
+    pub fn edges(&self) -> &[[u32; 2]] {
+        &self.edges
+    }
+
+    /// The two faces of each edge.
+    #[inline]
+    pub fn edge_faces(&self) -> &[[u32; 2]] {
+        &self.edge_faces
+    }
+
+    /// For each face, the edge index of its sides `v0→v1`, `v1→v2`, `v2→v0`.
+    #[inline]
+    pub fn face_edges(&self) -> &[[u32; 3]] {
+        &self.face_edges
+    }
+
+    /// Unit outward normal of each face.
+    #[inline]
+    pub fn face_normals(&self) -> &[Vector3<f64>] {
+        &self.face_normals
+    }
+
+    /// Outward edge normal: sum of the unit normals of its two faces.
+    #[inline]
+    pub fn edge_normals(&self) -> &[Vector3<f64>] {
+        &self.edge_normals
+    }
+
+    /// Outward node normal (see [`NodeNormalRule`]).
+    #[inline]
+    pub fn node_normals(&self) -> &[Vector3<f64>] {
+        &self.node_normals
+    }
+
+    /// Unit bisector of the angle at each corner of each face.
+    #[inline]
+    pub fn bisectors(&self) -> &[[Vector3<f64>; 3]] {
+        &self.bisectors
+    }
+
+    /// Radius of influence of each node: the longest edge containing it (0 if unused).
+    #[inline]
+    pub fn node_radius(&self) -> &[f64] {
+        &self.node_radius
+    }
+
+    /// Longest edge length.
+    #[inline]
+    pub fn max_edge(&self) -> f64 {
+        self.max_edge
+    }
+
+    /// Longest projection of an edge on each axis.
+    #[inline]
+    pub fn max_edge_projection(&self) -> &Vector3<f64> {
+        &self.max_edge_projection
+    }
+
+    /// Diagonal of the bounding box (the model size used for tolerances).
+    #[inline]
+    pub fn size(&self) -> f64 {
+        self.size
+    }
+
+    /// The node normal rule used.
+    #[inline]
+    pub fn node_rule(&self) -> NodeNormalRule {
+        self.node_rule
+    }
+
     /// Faces containing node `v`.
     #[inline]
     pub fn faces_of(&self, v: u32) -> &[u32] {
@@ -376,6 +462,64 @@ impl MasterSurface {
     #[inline]
     pub fn is_outside(&self, p: &Point3<f64>, r: &Point3<f64>, f: Feature) -> bool {
         (p - r).dot(self.normal(f)) > 0.0
+    }
+
+    /// The [`Projection`] of `p` on the surface point `r` of feature `f` at squared distance
+    /// `d2 = |PR|²`, with the paper's verdict at `r`.
+    #[inline]
+    pub(crate) fn projection(
+        &self,
+        p: &Point3<f64>,
+        r: Point3<f64>,
+        d2: f64,
+        f: Feature,
+    ) -> Projection {
+        let outside = self.is_outside(p, &r, f);
+        let dist = d2.sqrt();
+        Projection {
+            point: r,
+            signed_distance: if outside { -dist } else { dist },
+            outside,
+            feature: Some(f),
+        }
+    }
+
+    /// The exact closest point of `p` among the triangles `faces` (exact point–triangle
+    /// projection on each, the first one offered wins on exact ties), with its feature and
+    /// the paper's verdict there. `None` when `faces` is empty or `p` is not finite. Handlers
+    /// that know where the closest face must be (a grid box, a BVH leaf and its neighbours)
+    /// pass those faces; [`project_exact`](Self::project_exact) passes them all.
+    pub fn project_on_faces(
+        &self,
+        p: &Point3<f64>,
+        faces: impl IntoIterator<Item = u32>,
+    ) -> Option<Projection> {
+        let mut best: Option<(f64, Point3<f64>, Feature)> = None;
+        for t in faces {
+            let tri = self.triangles[t as usize];
+            let (q, region) = closest_point_triangle(
+                p,
+                &self.vertices[tri[0] as usize],
+                &self.vertices[tri[1] as usize],
+                &self.vertices[tri[2] as usize],
+            );
+            let d2 = (q - p).norm_squared();
+            if d2 < best.map_or(f64::INFINITY, |b| b.0) {
+                best = Some((d2, q, self.feature_of(t, region)));
+            }
+        }
+        best.map(|(d2, q, f)| self.projection(p, q, d2, f))
+    }
+
+    /// The exact closest point of the surface to `p` at any distance, with its feature and
+    /// the paper's verdict: every face is tested (O(faces); the reference the handlers are
+    /// tested against, and the exact fallback of the diagnostics). `None` for a non-finite
+    /// point.
+    pub fn project_exact(&self, p: &Point3<f64>) -> Option<Projection> {
+        if !p.coords.iter().all(|x| x.is_finite()) {
+            return None;
+        }
+        self.project_on_faces(p, 0..self.triangles.len() as u32)
     }
 
     /// Signed volume enclosed by the surface (positive for outward orientation).

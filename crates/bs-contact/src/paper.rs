@@ -89,10 +89,10 @@ use bs_mesh::TriSurface;
 use nalgebra::{Point3, Vector3};
 
 use crate::ContactError;
-use crate::enforce::{ClosestPoint, Projection};
 use crate::geometry::{circumcentre, project_inside_triangle};
 use crate::grid::BucketGrid;
 use crate::master::{Feature, MasterSurface};
+use crate::query::{ClosestPoint, Projection};
 
 /// Parameters of the paper's preprocessing.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -323,28 +323,31 @@ pub fn face_needs_check(c: &Point3<f64>, t: [&Point3<f64>; 3], n: &Vector3<f64>,
 
 /// Builds the additional lists for every used master node with penetration bound `d`.
 pub fn build_lists(m: &MasterSurface, d: f64, literal: bool) -> AdditionalLists {
-    let nv = m.vertices.len();
+    let nv = m.vertices().len();
     // Edges bucketed by midpoint, bucket size half the longest edge.
     let edge_items: Vec<(u32, Point3<f64>)> = m
-        .edges
+        .edges()
         .iter()
         .enumerate()
         .map(|(e, ab)| {
-            (e as u32, nalgebra::center(&m.vertices[ab[0] as usize], &m.vertices[ab[1] as usize]))
+            (
+                e as u32,
+                nalgebra::center(&m.vertices()[ab[0] as usize], &m.vertices()[ab[1] as usize]),
+            )
         })
         .collect();
-    let edge_grid = BucketGrid::new(&edge_items, Vector3::repeat(0.5 * m.max_edge));
+    let edge_grid = BucketGrid::new(&edge_items, Vector3::repeat(0.5 * m.max_edge()));
     // Faces bucketed by circumcentre, bucket size the largest circumradius.
     let mut rho_max = 0.0f64;
     let face_items: Vec<(u32, Point3<f64>)> = m
-        .triangles
+        .triangles()
         .iter()
         .enumerate()
         .map(|(f, t)| {
             let (a, b, c) = (
-                &m.vertices[t[0] as usize],
-                &m.vertices[t[1] as usize],
-                &m.vertices[t[2] as usize],
+                &m.vertices()[t[0] as usize],
+                &m.vertices()[t[1] as usize],
+                &m.vertices()[t[2] as usize],
             );
             let r = circumcentre(a, b, c)
                 .unwrap_or_else(|| Point3::from((a.coords + b.coords + c.coords) / 3.0));
@@ -361,42 +364,43 @@ pub fn build_lists(m: &MasterSurface, d: f64, literal: bool) -> AdditionalLists 
     };
     lists.edge_start.push(0);
     lists.face_start.push(0);
-    let edge_radius = m.max_edge + 2.0 * d;
+    let edge_radius = m.max_edge() + 2.0 * d;
     let edge_test = if literal { edge_needs_check_literal } else { edge_needs_check };
     let face_test = if literal { face_needs_check_literal } else { face_needs_check };
     let face_radius =
         if literal { 2.0 * rho_max } else { 2.0 * (rho_max * rho_max + d * d).sqrt() };
     for c in 0..nv as u32 {
         if m.is_used(c) {
-            let pc = &m.vertices[c as usize];
+            let pc = &m.vertices()[c as usize];
             let first_edge = lists.edges.len();
             edge_grid.for_each_in_box(pc, edge_radius, |e, _| {
-                let ab = m.edges[e as usize];
+                let ab = m.edges()[e as usize];
                 if ab.contains(&c) {
                     return;
                 }
-                let shares_face =
-                    m.edge_faces[e as usize].iter().any(|&f| m.triangles[f as usize].contains(&c));
+                let shares_face = m.edge_faces()[e as usize]
+                    .iter()
+                    .any(|&f| m.triangles()[f as usize].contains(&c));
                 if shares_face && literal {
                     return;
                 }
-                if edge_test(pc, &m.vertices[ab[0] as usize], &m.vertices[ab[1] as usize], d) {
+                if edge_test(pc, &m.vertices()[ab[0] as usize], &m.vertices()[ab[1] as usize], d) {
                     lists.edges.push(e);
                 }
             });
             lists.edges[first_edge..].sort_unstable();
             let first_face = lists.faces.len();
             face_grid.for_each_in_box(pc, face_radius, |f, _| {
-                let t = m.triangles[f as usize];
+                let t = m.triangles()[f as usize];
                 if t.contains(&c) {
                     return;
                 }
                 let tp = [
-                    &m.vertices[t[0] as usize],
-                    &m.vertices[t[1] as usize],
-                    &m.vertices[t[2] as usize],
+                    &m.vertices()[t[0] as usize],
+                    &m.vertices()[t[1] as usize],
+                    &m.vertices()[t[2] as usize],
                 ];
-                if face_test(pc, tp, &m.face_normals[f as usize], d) {
+                if face_test(pc, tp, &m.face_normals()[f as usize], d) {
                     lists.faces.push(f);
                 }
             });
@@ -421,9 +425,10 @@ pub(crate) struct FaceData {
 
 impl FaceData {
     fn new(m: &MasterSurface, f: usize) -> Self {
-        let t = m.triangles[f];
-        let v = [m.vertices[t[0] as usize], m.vertices[t[1] as usize], m.vertices[t[2] as usize]];
-        let n = m.face_normals[f];
+        let t = m.triangles()[f];
+        let v =
+            [m.vertices()[t[0] as usize], m.vertices()[t[1] as usize], m.vertices()[t[2] as usize]];
+        let n = m.face_normals()[f];
         let mut mm = [Vector3::zeros(); 3];
         let mut off = [0.0; 3];
         for k in 0..3 {
@@ -511,55 +516,55 @@ impl PaperContact {
         Self::from_master(Arc::new(MasterSurface::new(surface)?), params)
     }
 
-    /// Runs the preprocessing on an already validated master surface.
+    /// Runs the preprocessing on an already validated (shared) master surface.
     pub fn from_master(
         master: Arc<MasterSurface>,
         params: PaperParams,
     ) -> Result<Self, ContactError> {
-        let d = params.max_step_penetration.unwrap_or(0.25 * master.max_edge);
+        let d = params.max_step_penetration.unwrap_or(0.25 * master.max_edge());
         if !(d.is_finite() && d >= 0.0) {
             return Err(ContactError::InvalidParameter(format!(
                 "max_step_penetration must be finite and ≥ 0, got {d}"
             )));
         }
         // Master nodes bucketed with per-axis size = half the largest edge projection.
-        let items: Vec<(u32, Point3<f64>)> = (0..master.vertices.len() as u32)
+        let items: Vec<(u32, Point3<f64>)> = (0..master.vertices().len() as u32)
             .filter(|&v| master.is_used(v))
-            .map(|v| (v, master.vertices[v as usize]))
+            .map(|v| (v, master.vertices()[v as usize]))
             .collect();
-        let grid = BucketGrid::new(&items, master.max_edge_projection * 0.5);
+        let grid = BucketGrid::new(&items, master.max_edge_projection() * 0.5);
         let lists = if params.additional_lists {
             build_lists(&master, d, params.literal_list_tests)
         } else {
-            let nv = master.vertices.len();
+            let nv = master.vertices().len();
             AdditionalLists {
                 edge_start: vec![0; nv + 1],
                 face_start: vec![0; nv + 1],
                 ..Default::default()
             }
         };
-        let radius2 = master.node_radius.iter().map(|r| r * r).collect();
-        let nv = master.vertices.len();
+        let radius2 = master.node_radius().iter().map(|r| r * r).collect();
+        let nv = master.vertices().len();
         let mut faces_at_start = Vec::with_capacity(nv + 1);
-        let mut faces_at = Vec::with_capacity(master.node_faces.len());
+        let mut faces_at = Vec::with_capacity(3 * master.triangles().len());
         let mut edges_at_start = Vec::with_capacity(nv + 1);
-        let mut edges_at = Vec::with_capacity(master.node_edges.len());
+        let mut edges_at = Vec::with_capacity(2 * master.edges().len());
         faces_at_start.push(0);
         edges_at_start.push(0);
         for c in 0..nv as u32 {
             for &f in master.faces_of(c) {
-                let t = master.triangles[f as usize];
+                let t = master.triangles()[f as usize];
                 let k = t.iter().position(|&x| x == c).unwrap_or(0);
                 faces_at.push(FaceAt {
                     face: f,
-                    bisector: master.bisectors[f as usize][k],
+                    bisector: master.bisectors()[f as usize][k],
                     data: FaceData::new(&master, f as usize),
                 });
             }
             for &e in master.edges_of(c) {
-                let ab = master.edges[e as usize];
+                let ab = master.edges()[e as usize];
                 let other = if ab[0] == c { ab[1] } else { ab[0] };
-                let dir = master.vertices[other as usize] - master.vertices[c as usize];
+                let dir = master.vertices()[other as usize] - master.vertices()[c as usize];
                 edges_at.push(EdgeAt { edge: e, dir, len2: dir.norm_squared() });
             }
             faces_at_start.push(faces_at.len() as u32);
@@ -569,16 +574,16 @@ impl PaperContact {
             .edges
             .iter()
             .map(|&e| {
-                let ab = master.edges[e as usize];
-                let a = master.vertices[ab[0] as usize];
-                let dir = master.vertices[ab[1] as usize] - a;
+                let ab = master.edges()[e as usize];
+                let a = master.vertices()[ab[0] as usize];
+                let dir = master.vertices()[ab[1] as usize] - a;
                 EdgeSeg { edge: e, a, dir, len2: dir.norm_squared() }
             })
             .collect();
         let list_faces = lists.faces.iter().map(|&f| FaceData::new(&master, f as usize)).collect();
         // Node neighbourhoods for certifying the block search: the nearest (at most NEAR)
         // nodes within three longest edges.
-        let gather = 3.0 * master.max_edge;
+        let gather = 3.0 * master.max_edge();
         let mut near_start = Vec::with_capacity(nv + 1);
         let mut near = Vec::new();
         let mut near_radius = vec![0.0; nv];
@@ -586,7 +591,7 @@ impl PaperContact {
         let mut found: Vec<(f64, u32)> = Vec::new();
         for c in 0..nv as u32 {
             if master.is_used(c) {
-                let pc = master.vertices[c as usize];
+                let pc = master.vertices()[c as usize];
                 found.clear();
                 grid.for_each_in_box(&pc, gather, |id, q| {
                     let dist = (q - pc).norm();
@@ -669,7 +674,7 @@ impl PaperContact {
             if id == u32::MAX {
                 return self.grid.nearest_from(p, b, false).map(|n| n.id);
             }
-            (id, (self.master.vertices[id as usize] - p).norm_squared())
+            (id, (self.master.vertices()[id as usize] - p).norm_squared())
         };
         let c = start as usize;
         let limit = 2.0 * start_d2.sqrt() * (1.0 + 1e-12);
@@ -682,7 +687,7 @@ impl PaperContact {
                 if dist > limit {
                     break;
                 }
-                let d2 = (self.master.vertices[id as usize] - p).norm_squared();
+                let d2 = (self.master.vertices()[id as usize] - p).norm_squared();
                 crate::grid::consider(id, d2, &mut best, &mut next);
             }
             return Some(best.0);
@@ -696,7 +701,7 @@ impl PaperContact {
     pub fn local_search(&self, c: u32, p: &Point3<f64>) -> Option<Projection> {
         let m = &*self.master;
         let ci = c as usize;
-        let pc = &m.vertices[ci];
+        let pc = &m.vertices()[ci];
         let cp = p - pc;
         let mut best_d2 = f64::INFINITY;
         let mut best: Option<(Point3<f64>, Feature)> = None;
@@ -741,14 +746,7 @@ impl PaperContact {
             }
         }
         let (r, f) = best?;
-        let outside = m.is_outside(p, &r, f);
-        let dist = best_d2.sqrt();
-        Some(Projection {
-            point: r,
-            distance: if outside { -dist } else { dist },
-            outside,
-            feature: Some(f),
-        })
+        Some(m.projection(p, r, best_d2, f))
     }
 
     /// Global search then local search.
@@ -768,41 +766,21 @@ impl PaperContact {
     pub fn project_exact(&self, p: &Point3<f64>) -> Option<Projection> {
         let c = self.closest_node(p)?;
         if let Some(proj) = self.local_search(c, p)
-            && proj.distance.abs() <= self.d
+            && proj.signed_distance.abs() <= self.d
         {
             return Some(proj);
         }
         let m = &*self.master;
-        let radius = (p - m.vertices[c as usize]).norm() + m.max_edge;
-        let mut best = (f64::INFINITY, *p, Feature::Node(c));
-        let mut seen: Vec<u32> = Vec::new();
+        let radius = (p - m.vertices()[c as usize]).norm() + m.max_edge();
+        let mut faces: Vec<u32> = Vec::new();
         self.grid.for_each_in_box(p, radius, |id, _| {
             for &t in m.faces_of(id) {
-                if seen.contains(&t) {
-                    continue;
-                }
-                seen.push(t);
-                let tri = m.triangles[t as usize];
-                let (q, region) = crate::geometry::closest_point_triangle(
-                    p,
-                    &m.vertices[tri[0] as usize],
-                    &m.vertices[tri[1] as usize],
-                    &m.vertices[tri[2] as usize],
-                );
-                let d2 = (q - p).norm_squared();
-                if d2 < best.0 {
-                    best = (d2, q, m.feature_of(t, region));
+                if !faces.contains(&t) {
+                    faces.push(t);
                 }
             }
         });
-        let outside = m.is_outside(p, &best.1, best.2);
-        let dist = best.0.sqrt();
-        Some(Projection {
-            point: best.1,
-            distance: if outside { -dist } else { dist },
-            outside,
-            feature: Some(best.2),
-        })
+        m.project_on_faces(p, faces)
     }
 }
 

@@ -1,19 +1,17 @@
 //! Baseline handler on parry3d-f64: `TriMesh` (built with the `ORIENTED` flag so that its
 //! pseudo-normal inside test works) and its BVH closest-point query.
 
+use std::sync::Arc;
+
 use bs_mesh::TriSurface;
 use nalgebra::Point3;
 use parry3d_f64::math::Vector as PVec;
-use parry3d_f64::query::PointQuery;
+use parry3d_f64::query::{PointQuery, PointQueryWithLocation};
 use parry3d_f64::shape::{TriMesh, TriMeshFlags};
 
-use std::sync::Arc;
-
-use parry3d_f64::query::PointQueryWithLocation;
-
 use crate::ContactError;
-use crate::enforce::{ClosestPoint, Projection};
 use crate::master::MasterSurface;
+use crate::query::{ClosestPoint, Projection};
 
 /// Closest point and inside test from parry's `TriMesh` (the off-the-shelf baseline).
 pub struct ParryContact {
@@ -30,18 +28,20 @@ impl std::fmt::Debug for ParryContact {
 impl ParryContact {
     /// Validates the skull with the same rules as the other handlers and builds the mesh.
     pub fn new(surface: &TriSurface) -> Result<Self, ContactError> {
-        Self::from_master(&MasterSurface::new(surface)?)
+        Self::from_master(Arc::new(MasterSurface::new(surface)?))
     }
 
-    /// Builds the parry mesh from a validated master surface.
-    pub fn from_master(master: &MasterSurface) -> Result<Self, ContactError> {
+    /// Builds the parry mesh on a validated master surface, which it shares (parry keeps its
+    /// own copy of the vertices and triangles, in its own types).
+    pub fn from_master(master: Arc<MasterSurface>) -> Result<Self, ContactError> {
         let vertices: Vec<PVec> =
-            master.vertices.iter().map(|p| PVec::new(p.x, p.y, p.z)).collect();
-        let mesh = TriMesh::with_flags(vertices, master.triangles.clone(), TriMeshFlags::ORIENTED)
-            .map_err(|e| {
-                ContactError::InvalidParameter(format!("parry rejected the skull mesh: {e:?}"))
-            })?;
-        Ok(Self { mesh, master: Arc::new(master.clone()) })
+            master.vertices().iter().map(|p| PVec::new(p.x, p.y, p.z)).collect();
+        let mesh =
+            TriMesh::with_flags(vertices, master.triangles().to_vec(), TriMeshFlags::ORIENTED)
+                .map_err(|e| {
+                    ContactError::InvalidParameter(format!("parry rejected the skull mesh: {e:?}"))
+                })?;
+        Ok(Self { mesh, master })
     }
 
     /// Closest point with its feature and the paper's verdict at it: parry's BVH finds the
@@ -54,37 +54,12 @@ impl ParryContact {
         let q = PVec::new(p.x, p.y, p.z);
         let (_, (part, _)) = self.mesh.project_local_point_and_get_location(q, false);
         let m = &*self.master;
-        let t = part.min(m.triangles.len().saturating_sub(1) as u32);
+        let t = part.min(m.triangles().len().saturating_sub(1) as u32);
         // The feature parry reports can be a neighbour of the exact one on ties: test the
         // triangle and its edge neighbours exactly.
-        let mut best = (f64::INFINITY, *p, crate::Feature::Face(t));
-        let mut consider = |f: u32| {
-            let tri = m.triangles[f as usize];
-            let (r, region) = crate::geometry::closest_point_triangle(
-                p,
-                &m.vertices[tri[0] as usize],
-                &m.vertices[tri[1] as usize],
-                &m.vertices[tri[2] as usize],
-            );
-            let d2 = (r - p).norm_squared();
-            if d2 < best.0 {
-                best = (d2, r, m.feature_of(f, region));
-            }
-        };
-        consider(t);
-        for e in m.face_edges[t as usize] {
-            for f in m.edge_faces[e as usize] {
-                consider(f);
-            }
-        }
-        let outside = m.is_outside(p, &best.1, best.2);
-        let dist = best.0.sqrt();
-        Some(Projection {
-            point: best.1,
-            distance: if outside { -dist } else { dist },
-            outside,
-            feature: Some(best.2),
-        })
+        let neighbours =
+            m.face_edges()[t as usize].into_iter().flat_map(|e| m.edge_faces()[e as usize]);
+        m.project_on_faces(p, std::iter::once(t).chain(neighbours))
     }
 
     /// The master surface.
@@ -100,7 +75,7 @@ impl ParryContact {
         let dist = (r - p).norm();
         Projection {
             point: r,
-            distance: if proj.is_inside { dist } else { -dist },
+            signed_distance: if proj.is_inside { dist } else { -dist },
             outside: !proj.is_inside,
             feature: None,
         }

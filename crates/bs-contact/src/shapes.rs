@@ -6,47 +6,8 @@ use bs_mesh::TriSurface;
 use nalgebra::{Point3, Vector3};
 use parry3d_f64::math::Vector as PVec;
 
-/// A small deterministic random generator (SplitMix64).
-#[derive(Debug, Clone)]
-pub struct Rng(u64);
-
-impl Rng {
-    /// Seeded generator.
-    pub fn new(seed: u64) -> Self {
-        Self(seed ^ 0x9E37_79B9_7F4A_7C15)
-    }
-
-    /// Next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    pub fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// Uniform in [lo, hi).
-    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.uniform()
-    }
-
-    /// Uniform direction on the unit sphere.
-    pub fn direction(&mut self) -> Vector3<f64> {
-        loop {
-            let v =
-                Vector3::new(self.range(-1.0, 1.0), self.range(-1.0, 1.0), self.range(-1.0, 1.0));
-            let n = v.norm();
-            if n > 1e-3 && n <= 1.0 {
-                return v / n;
-            }
-        }
-    }
-}
+/// The workspace's one seeded generator (SplitMix64), under the name these tests use.
+pub use bs_mesh::rng::SplitMix64 as Rng;
 
 /// Convex hull of a point set as an outward-oriented closed surface.
 pub fn convex_hull(points: &[Point3<f64>]) -> TriSurface {

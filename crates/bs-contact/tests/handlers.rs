@@ -20,41 +20,42 @@ fn handlers_agree_with_brute_force_on_random_surfaces() {
     for (name, s) in surfaces() {
         let m = Arc::new(MasterSurface::new(&s).unwrap());
         let brute = BruteForce::from_master(m.clone());
-        let parry = ParryContact::from_master(&m).unwrap();
+        let parry = ParryContact::from_master(m.clone()).unwrap();
         let mut rng = Rng::new(42);
         let queries: Vec<_> = (0..3000)
             .map(|_| {
-                let q = query_near(&m, &mut rng, 2.0 * m.max_edge);
+                let q = query_near(&m, &mut rng, 2.0 * m.max_edge());
                 (q, brute.project(&q))
             })
             .collect();
         for (q, b) in &queries {
             let pa = parry.project(q);
             assert!(
-                (pa.distance - b.distance).abs() <= tol(b.distance, m.size)
+                (pa.signed_distance - b.signed_distance).abs() <= tol(b.signed_distance, m.size())
                     && pa.outside == b.outside,
                 "{name}: parry {pa:?} vs brute {b:?} at {q:?}"
             );
         }
         // d from a quarter edge (the default) to two edges (long lists).
         for d_factor in [0.25, 1.0, 2.0] {
-            let d = d_factor * m.max_edge;
+            let d = d_factor * m.max_edge();
             let params = PaperParams { max_step_penetration: Some(d), ..Default::default() };
             let paper = PaperContact::from_master(m.clone(), params).unwrap();
             let mut coherent = CoherentContact::from_master(m.clone(), params).unwrap();
             let (mut within, mut outside_within) = (0, 0);
             for (i, (q, b)) in queries.iter().enumerate() {
-                let t = tol(b.distance, m.size);
+                let t = tol(b.signed_distance, m.size());
                 let p = paper.project(q);
                 let c = coherent.closest(i % 5, q);
-                if b.distance.abs() <= d {
+                if b.signed_distance.abs() <= d {
                     within += 1;
                     outside_within += b.outside as usize;
                     let p = p.unwrap_or_else(|| {
                         panic!("{name}: paper found nothing at {q:?}, brute {b:?}")
                     });
                     assert!(
-                        (p.distance - b.distance).abs() <= t && p.outside == b.outside,
+                        (p.signed_distance - b.signed_distance).abs() <= t
+                            && p.outside == b.outside,
                         "{name} d={d_factor}L: paper {p:?} vs brute {b:?} at {q:?}"
                     );
                     let c = c.unwrap_or_else(|| panic!("{name}: coherent found nothing at {q:?}"));
@@ -89,14 +90,14 @@ fn find_fig2c(
 ) -> Option<bs_mesh::Point3<f64>> {
     let mut rng = Rng::new(7);
     for _ in 0..20000 {
-        let q = query_near(m, &mut rng, 0.25 * m.max_edge);
+        let q = query_near(m, &mut rng, 0.25 * m.max_edge());
         let b = brute.project(&q);
-        if !b.outside || -b.distance > paper.max_step_penetration() {
+        if !b.outside || -b.signed_distance > paper.max_step_penetration() {
             continue;
         }
         let c = paper.closest_node(&q).unwrap();
         if let Some(Feature::Face(f)) = b.feature
-            && !m.triangles[f as usize].contains(&c)
+            && !m.triangles()[f as usize].contains(&c)
         {
             return Some(q);
         }
@@ -121,11 +122,16 @@ fn fig2c_face_not_connected_to_closest_node_needs_additional_lists() {
     let q = find_fig2c(&m, &with, &brute).expect("the test surface has a Fig. 2c situation");
     let b = brute.project(&q);
     let ok = with.project(&q).unwrap();
-    assert!((ok.distance - b.distance).abs() <= tol(b.distance, m.size) && ok.outside);
+    assert!(
+        (ok.signed_distance - b.signed_distance).abs() <= tol(b.signed_distance, m.size())
+            && ok.outside
+    );
     assert_eq!(ok.feature, b.feature);
     let bad = without.project(&q);
     assert!(
-        bad.is_none_or(|p| !p.outside || (p.distance - b.distance).abs() > 1e-6 * m.size),
+        bad.is_none_or(
+            |p| !p.outside || (p.signed_distance - b.signed_distance).abs() > 1e-6 * m.size()
+        ),
         "without lists the paper's local search should miss the face: {bad:?} vs {b:?}"
     );
 }
@@ -151,14 +157,14 @@ fn literal_list_rules_miss_closest_features() {
     for _ in 0..3000 {
         let q = query_near(&m, &mut rng, d);
         let b = brute.project(&q);
-        if b.distance.abs() > d {
+        if b.signed_distance.abs() > d {
             continue;
         }
-        let t = tol(b.distance, m.size);
+        let t = tol(b.signed_distance, m.size());
         let o = ours.project(&q).unwrap();
-        assert!((o.distance - b.distance).abs() <= t && o.outside == b.outside);
+        assert!((o.signed_distance - b.signed_distance).abs() <= t && o.outside == b.outside);
         let l = literal.project(&q);
-        if l.is_none_or(|l| (l.distance - b.distance).abs() > t) {
+        if l.is_none_or(|l| (l.signed_distance - b.signed_distance).abs() > t) {
             assert!(
                 matches!(b.feature, Some(Feature::Edge(_))),
                 "literal rules miss a non-edge: {b:?}"
@@ -185,12 +191,16 @@ fn points_outside_the_bucket_grid_get_exact_answers() {
     for _ in 0..200 {
         let q = bs_mesh::Point3::from(rng.direction() * rng.range(1.5, 6.0));
         let c = paper.closest_node(&q).unwrap();
-        let best =
-            (0..m.vertices.len()).map(|v| (m.vertices[v] - q).norm()).fold(f64::INFINITY, f64::min);
-        assert_eq!((m.vertices[c as usize] - q).norm(), best);
+        let best = (0..m.vertices().len())
+            .map(|v| (m.vertices()[v] - q).norm())
+            .fold(f64::INFINITY, f64::min);
+        assert_eq!((m.vertices()[c as usize] - q).norm(), best);
         let b = brute.project(&q);
         let p = paper.project(&q).unwrap();
-        assert!((p.distance - b.distance).abs() <= tol(b.distance, m.size) && p.outside);
+        assert!(
+            (p.signed_distance - b.signed_distance).abs() <= tol(b.signed_distance, m.size())
+                && p.outside
+        );
     }
 }
 
@@ -205,12 +215,12 @@ fn closest_node_is_exact_everywhere() {
         let mut rng = Rng::new(17);
         for i in 0..600 {
             let q = match i % 3 {
-                0 => query_near(&m, &mut rng, m.max_edge),
+                0 => query_near(&m, &mut rng, m.max_edge()),
                 1 => common::surface_point(&m, &mut rng) * rng.range(0.0, 1.0), // towards the centre
                 _ => bs_mesh::Point3::from(rng.direction() * rng.range(0.0, 4.0)),
             };
-            let want = (0..m.vertices.len() as u32)
-                .map(|v| ((m.vertices[v as usize] - q).norm_squared(), v))
+            let want = (0..m.vertices().len() as u32)
+                .map(|v| ((m.vertices()[v as usize] - q).norm_squared(), v))
                 .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
                 .unwrap();
             assert_eq!(paper.closest_node(&q), Some(want.1), "{name}: query {q:?}");
@@ -226,21 +236,21 @@ fn exact_projections_agree_with_brute_force_at_any_distance() {
     for (name, s) in surfaces() {
         let m = Arc::new(MasterSurface::new(&s).unwrap());
         let brute = BruteForce::from_master(m.clone());
-        let parry = ParryContact::from_master(&m).unwrap();
+        let parry = ParryContact::from_master(m.clone()).unwrap();
         let paper = PaperContact::from_master(m.clone(), PaperParams::default()).unwrap();
         let mut rng = Rng::new(7);
         let mut far = 0;
         for _ in 0..2000 {
-            let q = query_near(&m, &mut rng, 6.0 * m.max_edge);
+            let q = query_near(&m, &mut rng, 6.0 * m.max_edge());
             let b = brute.project(&q);
-            far += (b.distance.abs() > paper.max_step_penetration()) as usize;
+            far += (b.signed_distance.abs() > paper.max_step_penetration()) as usize;
             for (handler, p) in
                 [("paper", paper.project_exact(&q)), ("parry", parry.project_exact(&q))]
             {
                 let p = p.unwrap();
-                let t = tol(b.distance, m.size);
+                let t = tol(b.signed_distance, m.size());
                 assert!(
-                    (p.distance - b.distance).abs() <= t && p.outside == b.outside,
+                    (p.signed_distance - b.signed_distance).abs() <= t && p.outside == b.outside,
                     "{name} {handler}: {p:?} vs brute {b:?} at {q:?}"
                 );
                 // The same feature up to exact ties (then the same normal direction).

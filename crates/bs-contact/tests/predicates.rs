@@ -225,36 +225,36 @@ fn all_seven_regions_are_classified() {
 #[test]
 fn node_and_edge_normals() {
     let m = MasterSurface::new(&cube()).unwrap();
-    for (v, n) in m.node_normals.iter().enumerate() {
-        let corner = m.vertices[v].coords.map(|x| if x > 0.5 { 1.0 } else { -1.0 });
+    for (v, n) in m.node_normals().iter().enumerate() {
+        let corner = m.vertices()[v].coords.map(|x| if x > 0.5 { 1.0 } else { -1.0 });
         let cos = n.normalize().dot(&corner.normalize());
         assert!((cos - 1.0).abs() < 1e-12, "vertex {v}: {n:?}");
     }
     let plain = MasterSurface::with_rule(&cube(), NodeNormalRule::PlainSum).unwrap();
-    let skewed = plain.node_normals.iter().enumerate().any(|(v, n)| {
-        let corner = plain.vertices[v].coords.map(|x| if x > 0.5 { 1.0 } else { -1.0 });
+    let skewed = plain.node_normals().iter().enumerate().any(|(v, n)| {
+        let corner = plain.vertices()[v].coords.map(|x| if x > 0.5 { 1.0 } else { -1.0 });
         (n.normalize().dot(&corner.normalize()) - 1.0).abs() > 1e-3
     });
     assert!(skewed, "the plain sum is triangulation dependent at cube corners");
-    for (e, ab) in m.edges.iter().enumerate() {
-        let [f1, f2] = m.edge_faces[e];
-        let sum = m.face_normals[f1 as usize] + m.face_normals[f2 as usize];
-        assert_eq!(m.edge_normals[e], sum);
-        let dir = m.vertices[ab[1] as usize] - m.vertices[ab[0] as usize];
+    for (e, ab) in m.edges().iter().enumerate() {
+        let [f1, f2] = m.edge_faces()[e];
+        let sum = m.face_normals()[f1 as usize] + m.face_normals()[f2 as usize];
+        assert_eq!(m.edge_normals()[e], sum);
+        let dir = m.vertices()[ab[1] as usize] - m.vertices()[ab[0] as usize];
         assert!(sum.dot(&dir).abs() < 1e-12);
     }
     // Angles at each node of a closed convex surface sum to less than 2π, bisectors are unit
     // and inside their corner.
     let s = shapes::random_convex(40, 1);
     let m = MasterSurface::new(&s).unwrap();
-    for (f, t) in m.triangles.iter().enumerate() {
+    for (f, t) in m.triangles().iter().enumerate() {
         for k in 0..3 {
             let (c, u, w) = (
-                m.vertices[t[k] as usize],
-                m.vertices[t[(k + 1) % 3] as usize],
-                m.vertices[t[(k + 2) % 3] as usize],
+                m.vertices()[t[k] as usize],
+                m.vertices()[t[(k + 1) % 3] as usize],
+                m.vertices()[t[(k + 2) % 3] as usize],
             );
-            let b = m.bisectors[f][k];
+            let b = m.bisectors()[f][k];
             assert!((b.norm() - 1.0).abs() < 1e-12);
             let half = corner_angle(&c, &u, &w) / 2.0;
             assert!(((u - c).normalize().dot(&b) - half.cos()).abs() < 1e-9);
@@ -285,7 +285,7 @@ fn bucket_sizes_and_node_radii() {
     for ax in 0..3 {
         assert_eq!(paper.grid().h[ax], 0.5 * proj[ax]);
     }
-    assert_eq!(paper.master().node_radius, radius);
+    assert_eq!(paper.master().node_radius(), radius);
     // Ellipsoid 3:2:1 → anisotropic buckets.
     assert!(paper.grid().h[0] > paper.grid().h[2]);
 }

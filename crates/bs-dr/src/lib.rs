@@ -24,9 +24,9 @@
 //!    observer.
 //!
 //! ```
+//! use bs_dr::bs_material::Material;
+//! use bs_dr::bs_mesh::{Element, Mesh, Point3};
 //! use bs_dr::{DynamicRelaxation, DrParams, Loads, Model, ModelOptions, NoContact, Solid, Solver};
-//! use bs_material::Material;
-//! use bs_mesh::{Element, Mesh, Point3};
 //!
 //! let nodes = vec![Point3::new(0.0, 0.0, 0.0), Point3::new(1.0, 0.0, 0.0),
 //!                  Point3::new(0.0, 1.0, 0.0), Point3::new(0.0, 0.0, 1.0)];
@@ -80,6 +80,14 @@ pub mod solver;
 pub mod sparse;
 pub mod stiffness;
 pub mod twolevel;
+
+/// The constitutive laws of [`Solid`], re-exported.
+pub use bs_material;
+/// The mesh crate of [`Model::new`]'s input, re-exported so that callers need no separate
+/// dependency.
+pub use bs_mesh;
+/// The linear algebra of every nodal vector here.
+pub use nalgebra;
 
 pub use contact::{Contact, ContactProjection, ContactReport, NoContact, SurfaceFeature};
 pub use dr::{DrParams, DynamicRelaxation};

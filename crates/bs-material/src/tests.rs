@@ -8,7 +8,7 @@
 //! wrong factor or sign (those give O(1) relative errors).
 
 use super::*;
-use nalgebra::{Rotation3, Unit};
+use nalgebra::{Matrix3, Rotation3, SMatrix, Unit, Vector3};
 use proptest::prelude::*;
 
 const H: f64 = 1e-6;
@@ -300,4 +300,80 @@ fn inv_cbrt_is_accurate() {
     assert!(
         (inv_cbrt(1e-310) - 1e-310f64.powf(-1.0 / 3.0)).abs() <= 1e-15 * 1e-310f64.powf(-1.0 / 3.0)
     );
+}
+
+/// Relative difference `|a − b| / max(|a|, |b|)` (0 for two zeros).
+fn rel(a: f64, b: f64) -> f64 {
+    let scale = a.abs().max(b.abs());
+    if scale == 0.0 { 0.0 } else { (a - b).abs() / scale }
+}
+
+/// Every law built from (E, ν) and from the (μ, κ) of the same (E, ν) is the same law: equal
+/// parameters and equal stress and energy at a general `F`, to 1e-12 relative.
+#[test]
+fn constructors_from_young_poisson_and_mu_kappa_agree() {
+    let f = f_from([1.08, 0.03, -0.02, 0.01, 0.93, 0.04, -0.05, 0.02, 1.02]);
+    for (young, poisson) in [(3000.0, 0.49), (1.0, 0.0), (210e9, 0.3), (5.0, -0.5), (842.0, 0.4999)]
+    {
+        let mu = young / (2.0 * (1.0 + poisson));
+        let kappa = young / (3.0 * (1.0 - 2.0 * poisson));
+        let pairs = [
+            (
+                Material::neo_hookean(young, poisson).unwrap(),
+                Material::neo_hookean_mu_kappa(mu, kappa).unwrap(),
+            ),
+            (
+                Material::st_venant_kirchhoff(young, poisson).unwrap(),
+                Material::st_venant_kirchhoff_mu_kappa(mu, kappa).unwrap(),
+            ),
+            (
+                Material::ogden(young, poisson, -4.7).unwrap(),
+                Material::ogden_mu_kappa(mu, kappa, -4.7).unwrap(),
+            ),
+        ];
+        for (a, b) in pairs {
+            let (ea, eb) = (a.elastic(), b.elastic());
+            assert!(rel(ea.mu, eb.mu) <= 1e-12 && rel(ea.kappa, eb.kappa) <= 1e-12, "{a:?} {b:?}");
+            assert!(rel(ea.young(), young) <= 1e-12 && rel(eb.young(), young) <= 1e-12);
+            let (sa, sb) = (a.pk2(&f).unwrap(), b.pk2(&f).unwrap());
+            assert!((sa - sb).amax() <= 1e-12 * sa.amax(), "{}: {sa} vs {sb}", a.name());
+            assert!(rel(a.energy(&f).unwrap(), b.energy(&f).unwrap()) <= 1e-12, "{}", a.name());
+        }
+        // The parameter types agree with the law constructors.
+        let lame = Lame::from_young_poisson(young, poisson).unwrap();
+        let lame2 = Lame::from_mu_kappa(mu, kappa).unwrap();
+        assert!(rel(lame.lambda, lame2.lambda) <= 1e-12 && rel(lame.mu, lame2.mu) <= 1e-12);
+        let back = Elastic::from(lame);
+        assert!(rel(back.kappa, kappa) <= 1e-12 && back.mu == lame.mu);
+        let o = OgdenParams::from_young_poisson(young, poisson, -4.7).unwrap();
+        let o2 = OgdenParams::from_mu_kappa(mu, kappa, -4.7).unwrap();
+        assert!(rel(o.mu, o2.mu) <= 1e-12 && rel(o.kappa, o2.kappa) <= 1e-12);
+    }
+}
+
+/// Every constructor names the parameter it rejects, with the same checks.
+#[test]
+fn every_constructor_names_the_rejected_parameter() {
+    let name_of = |r: Result<Material, MaterialError>| match r {
+        Err(MaterialError::InvalidParameter { name, .. }) => name,
+        other => panic!("expected a parameter error, got {other:?}"),
+    };
+    for (young, poisson, name) in [(0.0, 0.3, Parameter::Young), (1.0, 0.5, Parameter::Poisson)] {
+        assert_eq!(name_of(Material::neo_hookean(young, poisson)), name);
+        assert_eq!(name_of(Material::st_venant_kirchhoff(young, poisson)), name);
+        assert_eq!(name_of(Material::ogden(young, poisson, 2.0)), name);
+    }
+    for (mu, kappa, name) in [
+        (0.0, 1.0, Parameter::Shear),
+        (1.0, -1.0, Parameter::Bulk),
+        (f64::NAN, 1.0, Parameter::Shear),
+    ] {
+        assert_eq!(name_of(Material::neo_hookean_mu_kappa(mu, kappa)), name);
+        assert_eq!(name_of(Material::st_venant_kirchhoff_mu_kappa(mu, kappa)), name);
+        assert_eq!(name_of(Material::ogden_mu_kappa(mu, kappa, 2.0)), name);
+    }
+    assert_eq!(name_of(Material::ogden(1.0, 0.3, 0.0)), Parameter::OgdenExponent);
+    assert_eq!(name_of(Material::ogden_mu_kappa(1.0, 1.0, 0.0)), Parameter::OgdenExponent);
+    let msg = Material::neo_hookean_mu_kappa(1.0, 0.0).unwrap_err().to_string();
+    assert!(msg.contains("kappa"), "{msg}");
 }

@@ -98,70 +98,23 @@ impl Mesh {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{Element, Point3};
+    use crate::Element;
     use proptest::prelude::*;
 
     /// A structured grid of `n³` cubes over [0, 1]³, each split into 6 tetrahedra around the
-    /// main diagonal (Kuhn triangulation; conforming across cells), interior nodes jittered.
+    /// main diagonal (Kuhn triangulation; conforming across cells), interior nodes moved by
+    /// up to `jitter × h / 2` per axis.
     pub(crate) fn kuhn_cube(n: usize, jitter: f64, seed: u64) -> Mesh {
-        let idx = |i: usize, j: usize, k: usize| (k * (n + 1) + j) * (n + 1) + i;
-        let mut rng = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        let mut next = || {
-            rng = rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            ((rng >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-        };
-        let h = 1.0 / n as f64;
-        let mut nodes = Vec::new();
-        for k in 0..=n {
-            for j in 0..=n {
-                for i in 0..=n {
-                    let interior = i > 0 && i < n && j > 0 && j < n && k > 0 && k < n;
-                    let d = if interior { jitter * h } else { 0.0 };
-                    nodes.push(Point3::new(
-                        i as f64 * h + d * next(),
-                        j as f64 * h + d * next(),
-                        k as f64 * h + d * next(),
-                    ));
-                }
-            }
-        }
-        // The 6 Kuhn simplices: paths from corner 0 to corner 7 through the axis permutations.
-        const PERMS: [[usize; 3]; 6] =
-            [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]];
-        let mut elements = Vec::new();
-        for k in 0..n {
-            for j in 0..n {
-                for i in 0..n {
-                    for p in PERMS {
-                        let mut c = [i, j, k];
-                        let mut t = [idx(i, j, k); 4];
-                        for (s, &axis) in p.iter().enumerate() {
-                            c[axis] += 1;
-                            t[s + 1] = idx(c[0], c[1], c[2]);
-                        }
-                        let mut e = Element::tet4(t);
-                        let v = crate::mesh::element_volume(&nodes, &e);
-                        if v < 0.0 {
-                            e.nodes_mut().swap(1, 2);
-                        }
-                        elements.push(e);
-                    }
-                }
-            }
-        }
-        Mesh::new(nodes, elements)
+        crate::structured::jittered_box_mesh(n, 1.0, true, 0.5 * jitter, seed)
     }
 
     /// Renumbers nodes and reorders elements pseudo-randomly (same geometry).
     fn shuffled(m: Mesh, seed: u64) -> Mesh {
         let n = m.nodes.len();
         let mut perm: Vec<usize> = (0..n).collect();
-        let mut r = seed | 1;
+        let mut rng = crate::rng::SplitMix64::new(seed);
         for i in (1..n).rev() {
-            r ^= r << 13;
-            r ^= r >> 7;
-            r ^= r << 17;
-            perm.swap(i, (r % (i as u64 + 1)) as usize);
+            perm.swap(i, (rng.next_u64() % (i as u64 + 1)) as usize);
         }
         let mut nodes = vec![m.nodes[0]; n];
         for (old, &new) in perm.iter().enumerate() {

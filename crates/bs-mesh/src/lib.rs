@@ -18,6 +18,24 @@
 //! * [`io`]: readers and writers for Abaqus `.inp`, Gmsh `.msh` (2.2 and 4.1, ASCII or binary), VTK
 //!   legacy, VTU, STL, OBJ and OFF. Every parse error names the file and line (or byte
 //!   offset) and what was expected.
+//! * [`structured`]: structured box meshes (hexahedra or Kuhn tetrahedra, optionally
+//!   jittered) and [`rng`], the workspace's one seeded generator for tests and benchmarks.
+//!
+//! ```
+//! use bs_mesh::{Element, Mesh, Point3};
+//!
+//! // One unit hexahedron (Abaqus/VTK node order): validate it, take its outward boundary.
+//! let nodes = [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.],
+//!              [0., 0., 1.], [1., 0., 1.], [1., 1., 1.], [0., 1., 1.]].map(Point3::from);
+//! let mesh = Mesh::new(nodes.to_vec(), vec![Element::hex8([0, 1, 2, 3, 4, 5, 6, 7])]);
+//! assert!(mesh.validate().first_error().is_none());
+//! let boundary = mesh.boundary(); // quads split: 12 outward triangles
+//! assert_eq!(boundary.surface.triangles.len(), 12);
+//! assert!(boundary.surface.check().unwrap().is_closed_outward());
+//! // The same box as six Kuhn tetrahedra, and a 3×3×3 grid of them.
+//! let tets = bs_mesh::structured::box_mesh(3, 1.0, true);
+//! assert_eq!(tets.elements.len(), 6 * 27);
+//! ```
 //!
 //! Architecture invariant: this crate knows nothing about materials, solvers or contact.
 
@@ -26,6 +44,7 @@ pub mod io;
 mod locate;
 mod mesh;
 pub mod quality;
+pub mod rng;
 pub mod self_intersection;
 pub mod structured;
 mod surface;
@@ -34,6 +53,9 @@ mod validate;
 pub use boundary::BoundarySurface;
 pub use locate::{LocateError, Location, TetLocator, transfer};
 pub use mesh::{Element, ElementKind, HEX_REFERENCE, Mesh};
+/// The linear algebra of every coordinate here, re-exported so that callers need no
+/// separate dependency.
+pub use nalgebra;
 pub use nalgebra::{Point3, Vector3};
 pub use self_intersection::SelfIntersection;
 pub use surface::{Edge, SurfaceCheck, SurfaceError, SurfaceTopology, TriSurface};

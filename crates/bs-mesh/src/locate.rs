@@ -297,13 +297,8 @@ mod tests {
         let loc = TetLocator::new(&m).unwrap();
         let f = |p: &Point3<f64>| Vector3::new(2.0 * p.x - p.y, 0.5 * p.z + 1.0, p.x + p.y + p.z);
         let values: Vec<_> = m.nodes.iter().map(f).collect();
-        let mut s = 12345u64;
-        let mut r = || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::rng::SplitMix64::new(12345);
+        let mut r = || rng.uniform();
         for _ in 0..2000 {
             let p = Point3::new(r(), r(), r());
             let got = loc.interpolate(&values, &p);

@@ -1,11 +1,14 @@
 //! Structured box meshes: `n³` cubic cells over `[0, size]³`, as hexahedra or each cell
 //! split into 6 tetrahedra around its main diagonal (the Kuhn split, conforming across
 //! cells). Both kinds share one node grid, numbered x fastest, so a hexahedral and a
-//! tetrahedral solution can be compared node by node. Used by benchmarks, tests and the
-//! stability map; real anatomy comes from files.
+//! tetrahedral solution can be compared node by node. [`jittered_box_mesh`] moves the
+//! interior nodes at random (seeded, [`SplitMix64`]) for irregular meshes. The one box
+//! generator of the workspace: benchmarks, tests and the stability map use it; real anatomy
+//! comes from files.
 
 use nalgebra::Point3;
 
+use crate::rng::SplitMix64;
 use crate::{Element, Mesh};
 
 /// Index of grid node (i, j, k) of an `n³`-cell box.
@@ -60,6 +63,32 @@ pub fn box_mesh(n: usize, size: f64, tets: bool) -> Mesh {
     Mesh::new(nodes, elements)
 }
 
+/// [`box_mesh`] with every interior grid node moved by up to `jitter × h` per axis (`h` the
+/// cell size), uniformly at random from `seed`: x, y, z of each interior node in node order.
+/// A tetrahedron the jitter turned inside out has its vertices 1 and 2 swapped, so every
+/// element keeps a positive orientation (for `jitter < 0.25` none is turned).
+pub fn jittered_box_mesh(n: usize, size: f64, tets: bool, jitter: f64, seed: u64) -> Mesh {
+    let mut mesh = box_mesh(n, size, tets);
+    let amount = jitter * size / n as f64;
+    let mut rng = SplitMix64::new(seed);
+    for k in 1..n {
+        for j in 1..n {
+            for i in 1..n {
+                let p = &mut mesh.nodes[grid_index(n, i, j, k)];
+                for c in 0..3 {
+                    p[c] += amount * (2.0 * rng.uniform() - 1.0);
+                }
+            }
+        }
+    }
+    for e in 0..mesh.elements.len() {
+        if tets && mesh.element_volume(e) < 0.0 {
+            mesh.elements[e].nodes_mut().swap(1, 2);
+        }
+    }
+    mesh
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -76,6 +105,27 @@ mod tests {
             assert!((vols.iter().sum::<f64>() - 8.0).abs() < 1e-12);
             assert_eq!(m.elements.len(), if tets { 6 * 27 } else { 27 });
             assert_eq!(m.nodes.len(), 64);
+        }
+    }
+
+    /// Jitter moves interior nodes only, by at most `jitter × h`, reproducibly; the box
+    /// still fills its volume with positive elements.
+    #[test]
+    fn jitter_moves_interior_nodes_only() {
+        for tets in [true, false] {
+            let (plain, m) = (box_mesh(4, 2.0, tets), jittered_box_mesh(4, 2.0, tets, 0.2, 5));
+            assert_eq!(m, jittered_box_mesh(4, 2.0, tets, 0.2, 5));
+            let mut moved = 0;
+            for (a, b) in plain.nodes.iter().zip(&m.nodes) {
+                let on_boundary = (0..3).any(|c| a[c] == 0.0 || a[c] == 2.0);
+                let d = (b - a).amax();
+                assert!(if on_boundary { d == 0.0 } else { d <= 0.2 * 0.5 });
+                moved += (d > 0.0) as usize;
+            }
+            assert_eq!(moved, 27);
+            let vols: Vec<f64> = (0..m.elements.len()).map(|e| m.element_volume(e)).collect();
+            assert!(vols.iter().all(|&v| v > 0.0));
+            assert!((vols.iter().sum::<f64>() - 8.0).abs() < 1e-12);
         }
     }
 }

@@ -23,7 +23,7 @@ pub struct Composed {
     /// Slave nodes: boundary nodes of the brain without prescribed components.
     pub slaves: Vec<usize>,
     /// The skull's precomputed surface (for gap checks), if the scene has contact.
-    pub master: Option<MasterSurface>,
+    pub master: Option<Arc<MasterSurface>>,
     /// Exact closest points on the skull at any distance (the initial and final checks, and
     /// the Newton–Krylov solver's queries), if the scene has contact.
     pub exact: Option<Arc<ParryContact>>,
@@ -132,12 +132,16 @@ pub fn compose_with(p: &Prepared, opts: &ComposeOptions) -> Result<Composed, Sce
                 skull: c.skull.clone(),
                 message: e.to_string(),
             };
-            let master = MasterSurface::new(skull).map_err(|e| skull_error(&e))?;
-            let handler = Handler::new(algorithm(c.algorithm), skull, opts.contact)
-                .map_err(|e| skull_error(&e))?;
+            // One validated master surface per run, shared by the handler and the exact
+            // projection.
+            let master = Arc::new(MasterSurface::new(skull).map_err(|e| skull_error(&e))?);
+            let handler =
+                Handler::from_master(algorithm(c.algorithm), master.clone(), opts.contact)
+                    .map_err(|e| skull_error(&e))?;
             let enforcer = Enforcer::new(handler, slaves.clone(), model.node_count())
                 .map_err(|e| skull_error(&e))?;
-            let exact = Arc::new(ParryContact::from_master(&master).map_err(|e| skull_error(&e))?);
+            let exact =
+                Arc::new(ParryContact::from_master(master.clone()).map_err(|e| skull_error(&e))?);
             (
                 Some(master),
                 Some(SkullContact { enforcer, exact: exact.clone(), elapsed: Default::default() }),

@@ -42,7 +42,7 @@ pub fn exact_gaps(
     points
         .map(|q| match exact.project_exact(&q) {
             Some(pr) => bs_contact::GapRow {
-                signed_distance: pr.distance,
+                signed_distance: pr.signed_distance,
                 closest: pr.point,
                 outside: pr.outside,
             },

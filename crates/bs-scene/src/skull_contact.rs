@@ -46,16 +46,18 @@ impl bs_dr::Contact for SkullContact {
                     feature: SurfaceFeature::Vertex,
                 });
             }
-            Some(proj) if proj.distance.abs() <= reach && proj.feature.is_some() => Some(proj),
+            Some(proj) if proj.signed_distance.abs() <= reach && proj.feature.is_some() => {
+                Some(proj)
+            }
             _ => self.exact.project_exact(p),
         };
         let master = self.exact.master();
         let result = proj.and_then(|proj| {
             let feature = match proj.feature? {
-                Feature::Face(f) => SurfaceFeature::Face(master.face_normals[f as usize]),
+                Feature::Face(f) => SurfaceFeature::Face(master.face_normals()[f as usize]),
                 Feature::Edge(e) => {
-                    let [a, b] = master.edges[e as usize];
-                    let t = master.vertices[b as usize] - master.vertices[a as usize];
+                    let [a, b] = master.edges()[e as usize];
+                    let t = master.vertices()[b as usize] - master.vertices()[a as usize];
                     SurfaceFeature::Edge(t.normalize())
                 }
                 Feature::Node(_) => SurfaceFeature::Vertex,

@@ -25,15 +25,15 @@ pub fn surfaces() -> Vec<(&'static str, TriSurface)> {
 
 /// A random point of the surface (uniform face, uniform barycentric).
 pub fn surface_point(m: &MasterSurface, rng: &mut Rng) -> Point3<f64> {
-    let f = (rng.next_u64() % m.triangles.len() as u64) as usize;
-    let t = m.triangles[f];
+    let f = (rng.next_u64() % m.triangles().len() as u64) as usize;
+    let t = m.triangles()[f];
     let (mut u, mut v) = (rng.uniform(), rng.uniform());
     if u + v > 1.0 {
         u = 1.0 - u;
         v = 1.0 - v;
     }
-    let a = m.vertices[t[0] as usize];
-    a + (m.vertices[t[1] as usize] - a) * u + (m.vertices[t[2] as usize] - a) * v
+    let a = m.vertices()[t[0] as usize];
+    a + (m.vertices()[t[1] as usize] - a) * u + (m.vertices()[t[2] as usize] - a) * v
 }
 
 /// A random query within `reach` of a random surface point, in a random direction (so

@@ -1,39 +1,22 @@
 //! The vectorised kernels against the scalar reference, and inverted elements.
 
 use bs_material::Material;
-use bs_mesh::structured::box_mesh;
+use bs_mesh::rng::SplitMix64;
+use bs_mesh::structured::jittered_box_mesh;
 use bs_mesh::{Mesh, Vector3};
 
 use super::reference::{deformation_gradient, det3};
 use crate::{Inversion, Model, ModelOptions, Solid, TetFormulation};
 
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
 /// Unit box of `n³` cells, interior nodes jittered by up to 0.2 h per axis.
 fn jittered_box(n: usize, tets: bool) -> Mesh {
-    let mut mesh = box_mesh(n, 1.0, tets);
-    let h = 1.0 / n as f64;
-    let mut rng = Rng(5);
-    for p in mesh.nodes.iter_mut() {
-        if (0..3).all(|c| p[c] > 1e-9 && p[c] < 1.0 - 1e-9) {
-            for c in 0..3 {
-                p[c] += 0.2 * h * (2.0 * rng.next() - 1.0);
-            }
-        }
-    }
-    mesh
+    jittered_box_mesh(n, 1.0, tets, 0.2, 5)
 }
 
 /// A smooth large deformation (stretch, shear, compression; J from about 0.8 to 1.2) plus
 /// a random perturbation.
 fn deformation(mesh: &Mesh) -> Vec<Vector3<f64>> {
-    let mut rng = Rng(9);
+    let mut rng = SplitMix64::new(9);
     mesh.nodes
         .iter()
         .map(|p| {
@@ -41,7 +24,7 @@ fn deformation(mesh: &Mesh) -> Vec<Vector3<f64>> {
                 0.08 * (3.0 * p.z).sin() + 0.1 * p.x * p.y,
                 0.07 * p.x * p.z - 0.05 * p.y,
                 -0.12 * p.z * p.z + 0.04 * (2.0 * p.x).sin(),
-            ) + Vector3::new(rng.next() - 0.5, rng.next() - 0.5, rng.next() - 0.5) * 0.01
+            ) + Vector3::new(rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5) * 0.01
         })
         .collect()
 }

@@ -22,7 +22,7 @@ fn global_omega_max(model: &Model, loads: &Loads) -> f64 {
     let mut fm = fp.clone();
     let mut rng = Rng::new(3);
     let mut v: Vec<Vector3<f64>> = (0..n)
-        .map(|_| Vector3::new(rng.next() - 0.5, rng.next() - 0.5, rng.next() - 0.5))
+        .map(|_| Vector3::new(rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5))
         .collect();
     let free = |a: usize, c: usize| !loads.is_constrained(a, c);
     let mut lambda = 0.0;

@@ -21,7 +21,9 @@ fn internal_forces_are_bit_identical_for_1_and_2_threads() {
         let u: Vec<Vector3<f64>> = mesh
             .nodes
             .iter()
-            .map(|_| Vector3::new(rng.next() - 0.5, rng.next() - 0.5, rng.next() - 0.5) * 0.01)
+            .map(|_| {
+                Vector3::new(rng.uniform() - 0.5, rng.uniform() - 0.5, rng.uniform() - 0.5) * 0.01
+            })
             .collect();
         let run = |threads: usize| {
             pool(threads).install(|| {
