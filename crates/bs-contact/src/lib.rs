@@ -103,9 +103,9 @@ pub use diagnostics::{GapRow, OutsideNode, check_initial, gap};
 pub use enforce::{EnforceReport, Enforcer};
 pub use error::ContactError;
 pub use handler::{Algorithm, Handler};
-pub use master::{Feature, MasterSurface, NodeNormalRule};
+pub use master::{MasterSurface, NodeNormalRule};
 pub use null::NullHandler;
 pub use paper::{AdditionalLists, PaperContact, PaperParams};
 #[cfg(feature = "parry")]
 pub use parry_handler::ParryContact;
-pub use query::{ClosestPoint, Projection};
+pub use query::{ClosestPoint, Feature, Projection};

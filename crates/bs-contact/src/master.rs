@@ -9,7 +9,7 @@ use nalgebra::{Point3, Vector3};
 
 use crate::ContactError;
 use crate::geometry::{TriRegion, closest_point_triangle, corner_angle, triangle_normal};
-use crate::query::Projection;
+use crate::query::{Feature, Projection};
 
 /// How the normal at a node is formed from the normals of the faces around it.
 ///
@@ -32,17 +32,6 @@ pub enum NodeNormalRule {
     /// Plain sum of the unit normals of the faces around the node (the paper's literal
     /// wording).
     PlainSum,
-}
-
-/// A closest-point feature of the master surface.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Feature {
-    /// A master node (vertex index).
-    Node(u32),
-    /// A master edge (index into [`MasterSurface::edges`]).
-    Edge(u32),
-    /// A master face (triangle index).
-    Face(u32),
 }
 
 /// A validated, outward-oriented closed triangle surface with precomputed adjacency and

@@ -91,7 +91,8 @@ use nalgebra::{Point3, Vector3};
 use crate::ContactError;
 use crate::geometry::{circumcentre, project_inside_triangle};
 use crate::grid::BucketGrid;
-use crate::master::{Feature, MasterSurface};
+use crate::master::MasterSurface;
+use crate::query::Feature;
 use crate::query::{ClosestPoint, Projection};
 
 /// Parameters of the paper's preprocessing.

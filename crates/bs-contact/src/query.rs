@@ -5,7 +5,16 @@
 
 use nalgebra::Point3;
 
-use crate::master::Feature;
+/// A closest-point feature of the master surface.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Feature {
+    /// A master node (vertex index).
+    Node(u32),
+    /// A master edge (index into [`MasterSurface::edges`](crate::MasterSurface::edges)).
+    Edge(u32),
+    /// A master face (triangle index).
+    Face(u32),
+}
 
 /// Closest point of the master surface to a query point, with the paper's inside/outside
 /// verdict.
