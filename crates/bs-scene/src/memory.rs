@@ -66,4 +66,24 @@ mod tests {
         assert_eq!(parse_meminfo(text), Some(2048.0 * 1024.0));
         assert_eq!(parse_meminfo("MemTotal: 5 kB\n"), None);
     }
+
+    /// A scene whose estimate exceeds the limit is refused before anything is composed,
+    /// naming both figures; within the limit, or with no limit known, it passes.
+    #[test]
+    fn a_scene_above_the_available_memory_is_refused() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../fixtures/cube/uniaxial-t4.toml");
+        let p = Prepared::load(&path).unwrap();
+        let need = estimate(&p);
+        assert!(need > 1e6, "{need}");
+        match require_fits(&p, Some(need / 2.0)) {
+            Err(e @ SceneError::Memory { .. }) => {
+                let text = e.to_string();
+                assert!(text.contains("needs about") && text.contains("available"), "{text}");
+            }
+            other => panic!("expected a memory error, got {other:?}"),
+        }
+        assert!(require_fits(&p, Some(need * 2.0)).is_ok());
+        assert!(require_fits(&p, None).is_ok());
+    }
 }
