@@ -16,6 +16,8 @@
 //!   handler and solver, with CalculiX's points and the Pareto front (`docs/charts/`).
 //! * `stability`: the stability map, one run per cell: converged, stopped by a guard, or
 //!   failed silently (which must never happen).
+//! * `fuzz`: mutation fuzzing of every file reader and the scene parser (panics, hangs,
+//!   allocations sized by a count in the file); findings saved under `fixtures/fuzz/`.
 //! * `reference`: CalculiX reference solutions of the contact fixtures, stored in
 //!   `fixtures/<case>/reference/` (needs `ccx`).
 //!
@@ -27,6 +29,7 @@ mod bench_e2e;
 mod bench_solver;
 mod chart;
 mod deps;
+mod fuzz;
 mod plot;
 mod reference;
 mod stability;
@@ -34,6 +37,12 @@ mod util;
 mod validate;
 
 use std::process::ExitCode;
+
+/// The allocator, capped by `fuzz` during each input so that an allocation sized by a count
+/// in a file fails (and aborts, leaving the input behind) instead of exhausting the machine.
+/// The `unsafe` of the `GlobalAlloc` implementation is inside the `cap` crate.
+#[global_allocator]
+static ALLOC: cap::Cap<std::alloc::System> = cap::Cap::new(std::alloc::System, usize::MAX);
 
 const HELP: &str = "\
 cargo xtask <command>
@@ -53,6 +62,11 @@ Commands:
                   (release)
   stability       [--quick] the stability map: time step, Poisson ratio, hourglass control,
                   load until inversion, contact lists at sharp corners (writes docs/charts/)
+  fuzz            --seconds N [--seed S] mutate the fixtures for every reader (.inp .msh .vtk .vtu
+                  .stl .obj .off, scene.toml): panics, hangs (> 5 s) and allocations beyond
+                  64 x input + 256 MiB are findings, saved as fixtures/fuzz/<reader>-<n>.<ext>;
+                  exits non-zero on any finding (optimised with overflow checks: profile
+                  `fuzzing`)
   reference       CalculiX reference solutions of the contact fixtures (needs ccx):
                   [--case NAME] [--deck-only] [--timeout S] [--memory-gib G] [--threads N]
   help            print this help
@@ -60,9 +74,14 @@ Commands:
 
 /// Re-runs this xtask command from a release build; benchmarks of debug code mean nothing.
 fn rerun_in_release(args: &[String]) -> ExitCode {
+    rerun_with_profile("release", args)
+}
+
+/// Re-runs this xtask command built with the cargo profile `profile`.
+fn rerun_with_profile(profile: &str, args: &[String]) -> ExitCode {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let status = std::process::Command::new(cargo)
-        .args(["run", "--release", "--quiet", "--package", "xtask", "--"])
+        .args(["run", "--profile", profile, "--quiet", "--package", "xtask", "--"])
         .args(args)
         .status();
     match status {
@@ -73,6 +92,15 @@ fn rerun_in_release(args: &[String]) -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// Whether this executable was built with the cargo profile `profile` (it lives in
+/// `target/<profile>/`; the `fuzzing` profile keeps debug assertions, so `cfg!` cannot tell).
+fn built_with_profile(profile: &str) -> bool {
+    std::env::current_exe()
+        .ok()
+        .and_then(|p| p.parent().and_then(|d| d.file_name()).map(|n| n == profile))
+        .unwrap_or(false)
 }
 
 fn report(result: Result<(), String>, what: &str) -> ExitCode {
@@ -118,6 +146,11 @@ fn main() -> ExitCode {
         Some("chart") => report(chart::main(&args[1..]), "chart"),
         Some("stability") if cfg!(debug_assertions) => rerun_in_release(&args),
         Some("stability") => report(stability::main(&args[1..]), "stability"),
+        // Optimised, with overflow checks and debug assertions kept (Cargo.toml).
+        Some("fuzz") if cfg!(debug_assertions) && !built_with_profile("fuzzing") => {
+            rerun_with_profile("fuzzing", &args)
+        }
+        Some("fuzz") => report(fuzz::main(&args[1..]), "fuzz"),
         Some("reference") => {
             report(reference::parse_args(&args[1..]).and_then(|o| reference::run(&o)), "reference")
         }

@@ -81,6 +81,8 @@ impl SurfaceInfo {
     fn new(source: &'static str, c: &SurfaceCheck) -> Self {
         let consistently_oriented = c.misoriented_edges == 0;
         let orientation = match (c.boundary_edges == 0 && consistently_oriented, c.signed_volume) {
+            // No triangles (an empty mesh) have no orientation; -0 volume is not "inward".
+            _ if c.triangles == 0 => "undefined",
             (false, _) => "undefined",
             (true, v) if v > 0.0 => "outward",
             (true, _) => "inward",
@@ -310,6 +312,15 @@ pub fn run(file: &Path, json: bool) -> Result<ExitCode, io::MeshIoError> {
         crate::emit(&format!("{json}\n"));
     } else {
         crate::emit(&text(&report));
+    }
+    if let (false, Some(first)) = (report.valid, report.problems.first()) {
+        // The report went to standard output; say why the exit status is 1 where errors go.
+        let n = report.problems.len();
+        eprintln!(
+            "error: {}: the mesh is not usable ({n} problem{}); first: {first}",
+            file.display(),
+            if n == 1 { "" } else { "s" }
+        );
     }
     Ok(if report.valid { ExitCode::SUCCESS } else { ExitCode::FAILURE })
 }

@@ -131,7 +131,7 @@ fn bad_scenes_fail_with_their_expected_message() {
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
         .collect();
     scenes.sort();
-    assert!(scenes.len() >= 15, "the corpus must hold at least 15 scenes");
+    assert!(scenes.len() >= 60, "the corpus must hold at least 60 scenes");
     for scene in scenes {
         let text = std::fs::read_to_string(&scene).unwrap();
         let expect = text
@@ -150,6 +150,42 @@ fn bad_scenes_fail_with_their_expected_message() {
         assert!(err.contains(expect), "{}: expected '{expect}' in:\n{err}", scene.display());
         assert!(!err.contains("panicked"), "{}: {err}", scene.display());
     }
+}
+
+/// The command cases of the bad-input corpus (`fixtures/bad/commands.txt`: arguments, a tab,
+/// the text stderr must contain): each exits 1 with its message, never panics and writes
+/// nothing (neither in the corpus folder nor in the `{out}` folder it is given).
+#[test]
+fn bad_commands_fail_with_their_expected_message() {
+    let dir = root().join("fixtures/bad");
+    let listing = |d: &Path| {
+        let mut v: Vec<_> = std::fs::read_dir(d).unwrap().map(|e| e.unwrap().path()).collect();
+        v.sort();
+        v
+    };
+    let before = listing(&dir);
+    let table = std::fs::read_to_string(dir.join("commands.txt")).unwrap();
+    let mut cases = 0;
+    for line in table.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty()) {
+        let (args, expect) =
+            line.split_once('\t').unwrap_or_else(|| panic!("no tab in commands.txt line: {line}"));
+        let out = TempDir::new(&format!("bad-command-{cases}"));
+        let args: Vec<String> =
+            args.split_whitespace().map(|a| a.replace("{out}", out.0.to_str().unwrap())).collect();
+        let o = Command::new(env!("CARGO_BIN_EXE_brainshift"))
+            .args(&args)
+            .current_dir(&dir)
+            .output()
+            .expect("run brainshift");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: expected a clean failure, got:\n{err}");
+        assert!(err.contains(expect), "{args:?}: expected '{expect}' in:\n{err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(listing(&out.0).is_empty(), "{args:?} wrote {:?}", listing(&out.0));
+        cases += 1;
+    }
+    assert_eq!(listing(&dir), before, "a bad command wrote into fixtures/bad");
+    assert!(cases >= 25, "commands.txt must hold at least 25 cases, has {cases}");
 }
 
 /// Zero is not a thread count: refused with a message, nothing written.
