@@ -1,6 +1,6 @@
 //! The contact seam: the solver sees contact only through [`Contact`]. `bs-dr` knows nothing
-//! of buckets, triangles or closest points; `bs-contact` implements this trait and `bs-cli`
-//! composes the two.
+//! of buckets, triangles or closest points; `bs-scene` adapts `bs-contact`'s
+//! handlers to this trait.
 //!
 //! Dynamic Relaxation calls [`Contact::enforce`] after every step (the paper's kinematic
 //! contact). The Newton–Krylov solver takes larger steps and linearises the constraint: it

@@ -6,7 +6,7 @@
 //! Architecture invariant: this crate knows elements, materials and nodal vectors. It knows
 //! nothing of contact geometry (buckets, triangles, closest points): the contact reaches the
 //! solver only through the small [`Contact`] trait owned here, called after every step. It
-//! must not depend on `bs-contact`; `bs-cli` composes the two.
+//! must not depend on `bs-contact`; `bs-scene` composes the two.
 //!
 //! # Using it
 //!
