@@ -243,29 +243,13 @@ fn mean_edge(model: &Model) -> f64 {
     let mut sum = 0.0;
     let mut count = 0usize;
     for t in &model.tets {
-        for a in 0..4 {
-            for b in a + 1..4 {
-                sum += (x[t.nodes[a] as usize] - x[t.nodes[b] as usize]).norm();
-                count += 1;
-            }
+        for &[a, b] in bs_mesh::ElementKind::Tet4.edges() {
+            sum += (x[t.nodes[a] as usize] - x[t.nodes[b] as usize]).norm();
+            count += 1;
         }
     }
-    const HEX_EDGES: [(usize, usize); 12] = [
-        (0, 1),
-        (1, 2),
-        (2, 3),
-        (3, 0),
-        (4, 5),
-        (5, 6),
-        (6, 7),
-        (7, 4),
-        (0, 4),
-        (1, 5),
-        (2, 6),
-        (3, 7),
-    ];
     for h in &model.hexes {
-        for (a, b) in HEX_EDGES {
+        for &[a, b] in bs_mesh::ElementKind::Hex8.edges() {
             sum += (x[h.nodes[a] as usize] - x[h.nodes[b] as usize]).norm();
             count += 1;
         }

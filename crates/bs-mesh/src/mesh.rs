@@ -13,7 +13,35 @@ pub enum ElementKind {
     Hex8,
 }
 
+/// The 6 edges of a tetrahedron, as pairs of local node positions.
+const TET_EDGES: [[usize; 2]; 6] = [[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]];
+
+/// The 12 edges of a hexahedron (Abaqus/VTK node order): bottom ring, top ring, pillars.
+const HEX_EDGES: [[usize; 2]; 12] = [
+    [0, 1],
+    [1, 2],
+    [2, 3],
+    [3, 0],
+    [4, 5],
+    [5, 6],
+    [6, 7],
+    [7, 4],
+    [0, 4],
+    [1, 5],
+    [2, 6],
+    [3, 7],
+];
+
 impl ElementKind {
+    /// The edges of this shape as pairs of local node positions (the one table every edge
+    /// computation in the workspace uses).
+    pub const fn edges(self) -> &'static [[usize; 2]] {
+        match self {
+            ElementKind::Tet4 => &TET_EDGES,
+            ElementKind::Hex8 => &HEX_EDGES,
+        }
+    }
+
     /// Number of nodes of this element shape.
     pub const fn node_count(self) -> usize {
         match self {

@@ -15,29 +15,10 @@ use crate::{ElementKind, Mesh};
 /// 12, so shared edges count once per element (NaN for a mesh without elements). The
 /// length scale of a mesh's resolution, in the mesh's unit.
 pub fn mean_edge_length(mesh: &Mesh) -> f64 {
-    const TET: [(usize, usize); 6] = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
-    const HEX: [(usize, usize); 12] = [
-        (0, 1),
-        (1, 2),
-        (2, 3),
-        (3, 0),
-        (4, 5),
-        (5, 6),
-        (6, 7),
-        (7, 4),
-        (0, 4),
-        (1, 5),
-        (2, 6),
-        (3, 7),
-    ];
     let (mut sum, mut n) = (0.0, 0usize);
     for el in &mesh.elements {
         let v = el.nodes();
-        let edges: &[(usize, usize)] = match el.kind() {
-            ElementKind::Tet4 => &TET,
-            ElementKind::Hex8 => &HEX,
-        };
-        for &(a, b) in edges {
+        for &[a, b] in el.kind().edges() {
             sum += (mesh.nodes[v[a]] - mesh.nodes[v[b]]).norm();
             n += 1;
         }

@@ -259,23 +259,10 @@ impl Mesh {
 }
 
 fn longest_edge(points: &[crate::Point3<f64>], kind: ElementKind, nodes: &[usize]) -> f64 {
-    const TET: [[usize; 2]; 6] = [[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]];
-    const HEX: [[usize; 2]; 12] = [
-        [0, 1],
-        [1, 2],
-        [2, 3],
-        [3, 0],
-        [4, 5],
-        [5, 6],
-        [6, 7],
-        [7, 4],
-        [0, 4],
-        [1, 5],
-        [2, 6],
-        [3, 7],
-    ];
-    let edges: &[[usize; 2]] = if kind == ElementKind::Tet4 { &TET } else { &HEX };
-    edges.iter().map(|[a, b]| (points[nodes[*a]] - points[nodes[*b]]).norm()).fold(0.0, f64::max)
+    kind.edges()
+        .iter()
+        .map(|[a, b]| (points[nodes[*a]] - points[nodes[*b]]).norm())
+        .fold(0.0, f64::max)
 }
 
 #[cfg(test)]
