@@ -126,6 +126,8 @@ pub struct Verification {
     pub equilibrium_residual: f64,
     /// The bound `equilibrium_residual` met.
     pub equilibrium_bound: f64,
+    /// Volume ratio and von Mises stress per element (what the result file shows).
+    pub measures: bs_dr::ElementMeasures,
 }
 
 /// The largest relative out-of-balance force a result may keep at tolerance `tol` with
@@ -162,7 +164,23 @@ pub fn verify(
             tolerance: tol,
         });
     }
-    let (min_jacobian, worst) = smallest_jacobian(c, u);
+    let measures = match c.model.element_measures(u) {
+        Ok(m) => m,
+        Err(bs_dr::SolveError::ElementInverted { element, jacobian, .. }) => {
+            return Err(VerifyError::Inverted {
+                element_id: p.mesh.element_ids[element],
+                jacobian,
+            });
+        }
+        Err(_) => {
+            // Only a displacement field of the wrong length gets here: not a result.
+            return Err(VerifyError::Inverted {
+                element_id: p.mesh.element_ids.first().copied().unwrap_or(0),
+                jacobian: f64::NAN,
+            });
+        }
+    };
+    let (min_jacobian, worst) = smallest(&measures.volume_ratio);
     if min_jacobian.is_nan() || min_jacobian <= 0.0 {
         return Err(VerifyError::Inverted {
             element_id: p.mesh.element_ids[worst],
@@ -184,22 +202,15 @@ pub fn verify(
         min_jacobian,
         equilibrium_residual,
         equilibrium_bound,
+        measures,
     })
 }
 
-/// The smallest element volume ratio and its element (the first inverted element and its
-/// `det F` when one is; NaN when the model cannot measure `u`).
-fn smallest_jacobian(c: &Composed, u: &[Vector3<f64>]) -> (f64, usize) {
-    match c.model.element_measures(u) {
-        Ok(m) => m
-            .volume_ratio
-            .iter()
-            .copied()
-            .enumerate()
-            .fold((f64::INFINITY, 0), |(j, e), (k, x)| if x < j { (x, k) } else { (j, e) }),
-        Err(bs_dr::SolveError::ElementInverted { element, jacobian, .. }) => (jacobian, element),
-        Err(_) => (f64::NAN, 0),
-    }
+/// The smallest value and its index (NaN wins: a NaN volume ratio is refused).
+fn smallest(values: &[f64]) -> (f64, usize) {
+    values.iter().copied().enumerate().fold((f64::INFINITY, 0), |(j, e), (k, x)| {
+        if x < j || x.is_nan() && !j.is_nan() { (x, k) } else { (j, e) }
+    })
 }
 
 /// The largest internal force at a free component of a node out of contact, relative to the
