@@ -24,6 +24,17 @@ impl SplitMix64 {
         z ^ (z >> 31)
     }
 
+    /// Uniform index in `0..n` (0 when `n` is 0; modulo bias is negligible for test
+    /// inputs).
+    pub fn below(&mut self, n: usize) -> usize {
+        (self.next_u64() % n.max(1) as u64) as usize
+    }
+
+    /// A uniformly chosen element of a non-empty slice.
+    pub fn pick<'a, T>(&mut self, items: &'a [T]) -> &'a T {
+        &items[self.below(items.len())]
+    }
+
     /// Uniform in [0, 1).
     pub fn uniform(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
