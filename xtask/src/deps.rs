@@ -12,6 +12,7 @@ use serde_json::Value;
 pub const ALLOWED: &[(&str, &[&str])] = &[
     ("bs-mesh", &[]),
     ("bs-material", &[]),
+    ("bs-image", &[]),
     ("bs-contact", &["bs-mesh"]),
     ("bs-dr", &["bs-mesh", "bs-material"]),
     ("bs-scene", &["bs-mesh", "bs-material", "bs-dr", "bs-contact"]),

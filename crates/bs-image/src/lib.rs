@@ -1,0 +1,18 @@
+//! Images for brainshift: a regular voxel grid with its map to world coordinates in mm
+//! (`Grid`), voxel data on it (`Volume<T>`), the anatomical frame of world coordinates
+//! (`Space`: RAS, the NIfTI world frame, or LPS, the DICOM/ITK one), file formats (NIfTI-1
+//! `.nii`/`.nii.gz` read and written, MetaImage `.mha` written) and sampling.
+//!
+//! Voxel data are stored with the first index fastest: `data[i + nx * (j + ny * k)]`, as
+//! in NIfTI files.
+//!
+//! *Architecture invariant:* bs-image knows no meshes, materials, solvers or contact: it
+//! sees grids, voxels and points.
+
+mod error;
+mod grid;
+mod space;
+
+pub use error::ImageError;
+pub use grid::{Grid, Volume};
+pub use space::Space;

@@ -1,0 +1,42 @@
+//! The anatomical frame of world coordinates.
+
+use nalgebra::{Point3, Vector3};
+
+/// The anatomical frame world coordinates (mm) are given in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Space {
+    /// The NIfTI world frame and 3D Slicer's: +x = Right, +y = Anterior, +z = Superior.
+    #[default]
+    Ras,
+    /// DICOM / ITK frame: +x = Left, +y = Posterior, +z = Superior.
+    Lps,
+}
+
+impl Space {
+    /// "RAS" or "LPS", as written in scene files, VTU `SPACE` field data and reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Space::Ras => "RAS",
+            Space::Lps => "LPS",
+        }
+    }
+
+    /// Parses "RAS" / "LPS" (case-insensitive).
+    pub fn from_name(s: &str) -> Option<Space> {
+        match s.to_ascii_uppercase().as_str() {
+            "RAS" => Some(Space::Ras),
+            "LPS" => Some(Space::Lps),
+            _ => None,
+        }
+    }
+
+    /// A point of this frame expressed in `to` (RAS ↔ LPS negates x and y).
+    pub fn convert_point(self, to: Space, p: Point3<f64>) -> Point3<f64> {
+        if self == to { p } else { Point3::new(-p.x, -p.y, p.z) }
+    }
+
+    /// A vector (displacement) of this frame expressed in `to`.
+    pub fn convert_vector(self, to: Space, v: Vector3<f64>) -> Vector3<f64> {
+        if self == to { v } else { Vector3::new(-v.x, -v.y, v.z) }
+    }
+}
