@@ -20,29 +20,35 @@ use std::collections::VecDeque;
 
 use bs_mesh::TriSurface;
 use nalgebra::Point3;
+use rayon::prelude::*;
 
 use crate::edt::squared_distance;
 use crate::implicit::{SampledField, WorkGrid, gaussian_blur};
 use crate::stuffing::{Fill, Stuffed, stuff};
 
 /// The smoothed offset-and-close field of a brain mask on `work` (negative inside the
-/// cavity, in mm).
-pub fn offset_field(work: &WorkGrid, brain: &[f32], offset: f64, closing: f64) -> SampledField {
-    let dims = work.dims();
-    let spacing = work.grid.spacing();
-    let inside: Vec<bool> = brain.iter().map(|&v| v > 0.5).collect();
+/// cavity, in mm), computed on blocks of `coarsen`³ voxels (the block is brain when at
+/// least half of it is: volume-neutral, positions within half a block).
+pub fn offset_field(work: &WorkGrid, brain: &[f32], offset: f64, closing: f64, coarsen: usize) -> SampledField {
+    let (grid, brain) = if coarsen > 1 {
+        crate::implicit::coarsen(&work.grid, brain, coarsen)
+    } else {
+        (work.grid.clone(), brain.to_vec())
+    };
+    let dims = grid.dims();
+    let spacing = grid.spacing();
+    let inside: Vec<bool> = brain.par_iter().map(|&v| v >= 0.5).collect();
     let d1 = squared_distance(&inside, dims, spacing);
     let reach = ((offset + closing) * (offset + closing)) as f32;
-    let outside_dilation: Vec<bool> = d1.iter().map(|&d| d > reach).collect();
+    let outside_dilation: Vec<bool> = d1.par_iter().map(|&d| d > reach).collect();
     drop(d1);
     let d2 = squared_distance(&outside_dilation, dims, spacing);
     let r = closing as f32;
     // Samples are `dist − closing` (positive inside, like an indicator), so that
     // `eval = 0 − sample` is negative inside.
-    let mut g: Vec<f32> =
-        d2.iter().map(|&d| if d.is_finite() { d.sqrt() - r } else { 1e3 }).collect();
+    let mut g: Vec<f32> = d2.par_iter().map(|&d| if d.is_finite() { d.sqrt() - r } else { 1e3 }).collect();
     gaussian_blur(&mut g, dims, [1.0; 3]);
-    SampledField { grid: work.grid.clone(), data: g, outside: -r.max(1.0), level: 0.0 }
+    SampledField { grid, data: g, outside: -r.max(1.0), level: 0.0 }
 }
 
 /// The smoothed indicator of the region enclosed by `skull` voxels on `work` (6-connected

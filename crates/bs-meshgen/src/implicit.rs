@@ -60,6 +60,40 @@ impl WorkGrid {
     }
 }
 
+/// Block means of `data` on `grid` over `f`×`f`×`f` voxel blocks, with the grid of the
+/// block centres (partial blocks at the far faces average the voxels they have).
+pub fn coarsen(grid: &Grid, data: &[f32], f: usize) -> (Grid, Vec<f32>) {
+    let [nx, ny, nz] = grid.dims();
+    let dims = [nx, ny, nz].map(|n| n.div_ceil(f));
+    let c = (f as f64 - 1.0) / 2.0;
+    let mut m = Matrix4::identity() * f as f64;
+    m[(3, 3)] = 1.0;
+    for a in 0..3 {
+        m[(a, 3)] = c;
+    }
+    let coarse = Grid::new(dims, grid.voxel_to_world() * m).expect("a scaled valid affine stays valid");
+    let [cx, cy, _] = dims;
+    let mut out = vec![0f32; dims[0] * dims[1] * dims[2]];
+    out.par_chunks_mut(cx * cy).enumerate().for_each(|(kk, slab)| {
+        for jj in 0..cy {
+            for ii in 0..cx {
+                let (mut s, mut n) = (0f32, 0u32);
+                for k in kk * f..((kk + 1) * f).min(nz) {
+                    for j in jj * f..((jj + 1) * f).min(ny) {
+                        let row = nx * (j + ny * k);
+                        for i in ii * f..((ii + 1) * f).min(nx) {
+                            s += data[row + i];
+                            n += 1;
+                        }
+                    }
+                }
+                slab[ii + cx * jj] = s / n as f32;
+            }
+        }
+    });
+    (coarse, out)
+}
+
 /// Smallest box of voxels (inclusive) whose label satisfies `pred`, or `None`.
 pub fn bounding_box(
     labels: &Volume<u32>,

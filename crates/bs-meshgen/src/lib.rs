@@ -389,7 +389,11 @@ pub fn mesh_labelmap(labels: &Volume<u32>, params: &MeshParams) -> Result<Meshed
 
     // Skull cavity.
     let cavity = match &params.cavity_labels {
-        None => cavity::offset_field(&work, &raw_brain, params.skull_offset, params.closing_radius),
+        None => {
+            // The cavity needs no finer field than half its lattice spacing.
+            let coarsen = ((skull_h / (2.0 * max_spacing)).floor() as usize).clamp(1, 3);
+            cavity::offset_field(&work, &raw_brain, params.skull_offset, params.closing_radius, coarsen)
+        }
         Some(sk) => {
             let skull_ind = work.indicator(labels, |l| sk.contains(&l));
             cavity::enclosed_field(&work, &skull_ind, sigma_vox)

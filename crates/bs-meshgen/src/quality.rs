@@ -8,9 +8,11 @@ use rayon::prelude::*;
 /// The 6 interior dihedral angles (radians) of a tetrahedron, at edges 01, 02, 03, 12, 13,
 /// 23. A degenerate tetrahedron gives angles of 0 or π.
 pub fn dihedral_angles(p: &[Point3<f64>; 4]) -> [f64; 6] {
+    // The three other vertices of each vertex k (the face opposite k).
+    const OPPOSITE: [[usize; 3]; 4] = [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]];
     // Inward normal of the face opposite vertex k (towards k).
     let normal = |k: usize| -> Vector3<f64> {
-        let f: Vec<usize> = (0..4).filter(|&i| i != k).collect();
+        let f = OPPOSITE[k];
         let n = (p[f[1]] - p[f[0]]).cross(&(p[f[2]] - p[f[0]]));
         let n = if n.dot(&(p[k] - p[f[0]])) < 0.0 { -n } else { n };
         n.try_normalize(0.0).unwrap_or_else(Vector3::zeros)
@@ -18,12 +20,8 @@ pub fn dihedral_angles(p: &[Point3<f64>; 4]) -> [f64; 6] {
     let n = [normal(0), normal(1), normal(2), normal(3)];
     // The edge (i, j) is shared by the faces opposite the other two vertices k, l; the
     // dihedral angle is π minus the angle between their inward normals.
-    let edges = [[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]];
-    edges.map(|[i, j]| {
-        let o: Vec<usize> = (0..4).filter(|&x| x != i && x != j).collect();
-        let c = n[o[0]].dot(&n[o[1]]).clamp(-1.0, 1.0);
-        std::f64::consts::PI - c.acos()
-    })
+    const OTHERS: [[usize; 2]; 6] = [[2, 3], [1, 3], [1, 2], [0, 3], [0, 2], [0, 1]];
+    OTHERS.map(|[k, l]| std::f64::consts::PI - n[k].dot(&n[l]).clamp(-1.0, 1.0).acos())
 }
 
 /// Extremes of the element quality of a mesh.

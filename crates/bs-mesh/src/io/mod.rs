@@ -264,6 +264,22 @@ pub fn write_mesh(path: &Path, mesh: &Mesh, fields: &Fields) -> Result<(), MeshI
     }
 }
 
+/// Like [`write_mesh`], and a `.vtu` also carries the field-data string `SPACE` = `space`
+/// (e.g. `"RAS"`), the coordinate frame 3D Slicer reads; other formats have no place for it.
+pub fn write_mesh_in_space(
+    path: &Path,
+    mesh: &Mesh,
+    fields: &Fields,
+    space: &str,
+) -> Result<(), MeshIoError> {
+    match Format::from_path(path) {
+        Some(Format::Vtu) => write_atomic(path, |w| {
+            vtu::write_with_field_data(w, mesh, fields, vtu::Encoding::Appended, &[("SPACE", space)])
+        }),
+        _ => write_mesh(path, mesh, fields),
+    }
+}
+
 /// Writes a triangle surface as `.off` or `.stl` (binary), chosen by extension.
 pub fn write_surface(path: &Path, surface: &TriSurface) -> Result<(), MeshIoError> {
     match Format::from_path(path) {

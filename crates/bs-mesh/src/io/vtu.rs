@@ -411,6 +411,19 @@ pub(crate) fn xml_escape(s: &str) -> String {
 
 /// Writes a VTU file (see the module documentation for the layout).
 pub fn write(w: &mut dyn Write, mesh: &Mesh, fields: &Fields, enc: Encoding) -> io::Result<()> {
+    write_with_field_data(w, mesh, fields, enc, &[])
+}
+
+/// Writes a VTU file with string field data: one `<FieldData>` `String` array per
+/// `(name, value)` pair (ASCII, the characters' codes and a terminating 0, as VTK writes
+/// them), e.g. `("SPACE", "RAS")`, which 3D Slicer reads as the coordinate frame.
+pub fn write_with_field_data(
+    w: &mut dyn Write,
+    mesh: &Mesh,
+    fields: &Fields,
+    enc: Encoding,
+    field_data: &[(&str, &str)],
+) -> io::Result<()> {
     check_for_write(mesh, fields)?;
     let (nn, ne) = (mesh.nodes.len(), mesh.elements.len());
     let mut point = Vec::new();
@@ -491,6 +504,20 @@ pub fn write(w: &mut dyn Write, mesh: &Mesh, fields: &Fields, enc: Encoding) -> 
     )?;
     writeln!(w, "<!-- written by brainshift -->")?;
     writeln!(w, "<UnstructuredGrid>")?;
+    if !field_data.is_empty() {
+        writeln!(w, "<FieldData>")?;
+        for (name, value) in field_data {
+            let codes: Vec<String> =
+                value.bytes().chain(std::iter::once(0)).map(|b| b.to_string()).collect();
+            writeln!(
+                w,
+                "<DataArray type=\"String\" Name=\"{}\" NumberOfTuples=\"1\" format=\"ascii\">\n{}\n</DataArray>",
+                xml_escape(name),
+                codes.join(" ")
+            )?;
+        }
+        writeln!(w, "</FieldData>")?;
+    }
     writeln!(w, "<Piece NumberOfPoints=\"{nn}\" NumberOfCells=\"{ne}\">")?;
     for (tag, list) in
         [("PointData", &point), ("CellData", &cell), ("Points", &points), ("Cells", &cells)]
@@ -867,6 +894,11 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
     let mut cells = Cells { loc: Some(Location::Byte(piece_pos)), ..Default::default() };
     let (mut pdata, mut cdata) = (Vec::new(), Vec::new());
     for a in arrays {
+        // Field data (e.g. Slicer's SPACE string) and arrays outside the grid's sections
+        // carry nothing the mesh needs.
+        if !matches!(a.section.as_str(), "Points" | "Cells" | "PointData" | "CellData") {
+            continue;
+        }
         let ty = a.attrs.get("type").cloned().unwrap_or_default();
         let fail = |m: String| {
             err(a.pos, format!("DataArray '{}': {m}", a.attrs.get("Name").map_or("", |s| s)))
@@ -1022,5 +1054,22 @@ mod tests {
     fn base64_pieces_with_inner_padding_decode() {
         // VTK encodes a compressed block's header apart from the data: "AQ==" + "AgM=".
         assert_eq!(b64_decode(b"AQ==\nAgM=").unwrap(), vec![1, 2, 3]);
+    }
+
+    /// The SPACE string is written as VTK writes String field data (character codes and a
+    /// terminating 0) before the piece, and the file still reads back to the same mesh.
+    #[test]
+    fn space_field_data_is_written_and_skipped_on_read() {
+        let mesh = crate::structured::box_mesh(1, 1.0, true);
+        let mut out = Vec::new();
+        write_with_field_data(&mut out, &mesh, &Fields::default(), Encoding::Inline, &[("SPACE", "RAS")])
+            .unwrap();
+        let text = String::from_utf8(out.clone()).unwrap();
+        let fd = text.find("<FieldData>").unwrap();
+        assert!(fd < text.find("<Piece").unwrap());
+        assert!(text.contains("type=\"String\" Name=\"SPACE\" NumberOfTuples=\"1\" format=\"ascii\">\n82 65 83 0\n"));
+        let (back, _) = read(&out, Path::new("t.vtu")).unwrap();
+        assert_eq!(back.nodes, mesh.nodes);
+        assert_eq!(back.elements, mesh.elements);
     }
 }
