@@ -225,3 +225,17 @@ fn sampling_is_exact_on_linear_fields() {
     let p = grid.world([2.4, 1.6, 0.51]);
     assert_eq!(nearest(&vol, &p), Some(vol.at(2, 2, 1)));
 }
+
+/// The real labelmap (fixtures/mni152/make_labels.py): the voxel counts and affine nilearn
+/// and nibabel give (PROVENANCE-labels.txt).
+#[test]
+fn mni152_labelmaps_read_as_nibabel_reads_them() {
+    let base = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/mni152");
+    let mask = nifti::read_labels(&base.join("mask.nii.gz")).unwrap();
+    assert_eq!(mask.grid.dims(), [197, 233, 189]);
+    assert_eq!(mask.data.iter().filter(|&&v| v == 1).count(), 1_882_989);
+    assert_eq!(mask.grid.world([0.0, 0.0, 0.0]), Point3::new(-98.0, -134.0, -72.0));
+    let labels = nifti::read_labels(&base.join("labels.nii.gz")).unwrap();
+    assert_eq!(labels.data.iter().filter(|&&v| v == 4).count(), 7_332);
+    assert_eq!(labels.data.iter().filter(|&&v| v != 0).count(), 1_882_989);
+}
