@@ -11,8 +11,12 @@
 
 mod error;
 mod grid;
+mod mha;
+pub mod nifti;
+pub mod sample;
 mod space;
 
 pub use error::ImageError;
 pub use grid::{Grid, Volume};
+pub use mha::write_displacement_mha;
 pub use space::Space;
