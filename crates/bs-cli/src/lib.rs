@@ -5,6 +5,7 @@
 pub mod check;
 pub mod gap;
 pub mod inspect;
+pub mod mesh;
 pub mod run;
 
 /// Writes `text` to standard output. A closed pipe (`brainshift inspect x | head`) is not an

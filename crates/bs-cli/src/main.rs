@@ -1,6 +1,6 @@
 //! `brainshift`: brain shift computation for image-guided neurosurgery.
 
-use bs_cli::{check, gap, inspect, run};
+use bs_cli::{check, gap, inspect, mesh, run};
 use bs_scene::scene;
 
 use std::path::PathBuf;
@@ -60,6 +60,37 @@ enum Command {
         #[arg(long, default_value = "out")]
         out: PathBuf,
     },
+    /// Builds a model from a segmentation: a quality tetrahedral (or hexahedral) brain
+    /// mesh of a labelmap with an element set per region, a skull cavity around it and a
+    /// scene. Writes DIR/brain.vtu, DIR/brain.inp, DIR/skull.off and DIR/scene.toml and
+    /// prints a quality report. Coordinates: the image's world frame (RAS), mm.
+    Mesh {
+        /// The labelmap (.nii or .nii.gz).
+        labels: PathBuf,
+        /// Output folder (created if missing).
+        #[arg(long)]
+        out: PathBuf,
+        /// Label values that make up the brain, e.g. 1,2,3 (default: every non-zero label).
+        #[arg(long)]
+        brain: Option<String>,
+        /// A region with its own material as NAME=LABELS, e.g. ventricles=4 (repeatable);
+        /// the rest of the brain is the element set BRAIN.
+        #[arg(long = "region")]
+        regions: Vec<String>,
+        /// Target element edge length, mm.
+        #[arg(long, default_value_t = 4.0)]
+        size: f64,
+        /// Element type: t4 (isosurface stuffing, dihedral angles in [10.8°, 164.8°]) or h8
+        /// (grid hexahedra).
+        #[arg(long, default_value = "t4")]
+        element: String,
+        /// Distance of the skull cavity outside the brain, mm.
+        #[arg(long, default_value_t = 3.0)]
+        skull_offset: f64,
+        /// Use the inner boundary of these (skull) labels as the cavity instead of an offset.
+        #[arg(long)]
+        cavity: Option<String>,
+    },
     /// Brain–skull gap of every boundary node of a mesh (or of points): one CSV row per node
     /// `id,signed_distance,closest_x,closest_y,closest_z,outside` (positive = inside the
     /// skull). Exits 1 if any node is outside the skull.
@@ -108,6 +139,18 @@ fn main() -> ExitCode {
             threads: None,
             quiet: false,
         }),
+        Command::Mesh { labels, out, brain, regions, size, element, skull_offset, cavity } => {
+            mesh::run(&mesh::MeshOptions {
+                labels,
+                out,
+                brain,
+                regions,
+                size,
+                element,
+                skull_offset,
+                cavity,
+            })
+        }
         Command::Gap { skull, mesh, points, algorithm, out } => {
             let query = match (mesh, points) {
                 (Some(m), _) => Ok(gap::Query::Mesh(m)),

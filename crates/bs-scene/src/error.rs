@@ -121,6 +121,15 @@ pub enum SceneError {
     /// The solver converged but the result failed a check independent of it.
     #[error("{0}")]
     Verify(#[from] crate::verify::VerifyError),
+    /// A labelmap cannot be read or meshed (`brainshift mesh`); the message says why and
+    /// the fix.
+    #[error("{}: {message}", file.display())]
+    Labelmap {
+        /// The labelmap file.
+        file: PathBuf,
+        /// What is wrong and how to fix it.
+        message: String,
+    },
     /// An output file could not be written.
     #[error("{}: {message}", path.display())]
     Write {
@@ -154,6 +163,7 @@ impl SceneError {
             SceneError::Memory { .. } => "Memory",
             SceneError::Solve(e) => e.kind(),
             SceneError::Verify(e) => e.kind(),
+            SceneError::Labelmap { .. } => "Labelmap",
             SceneError::Write { .. } => "Write",
         }
     }

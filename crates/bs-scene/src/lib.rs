@@ -17,6 +17,8 @@
 //!   maps measure), [`verdict`]: how such a run ended, and [`findings`]: the
 //!   speed-versus-accuracy results, typed end to end.
 //!
+//! [`mesh_scene`] makes a scene folder from a labelmap (`brainshift mesh`, via bs-meshgen).
+//!
 //! [`calculix`] writes a scene as a CalculiX deck and reads the reference solutions back.
 //!
 //! Every error is a [`SceneError`] naming the file and the key, set, node or element.
@@ -40,6 +42,7 @@ mod error;
 pub mod findings;
 pub mod gap;
 pub mod memory;
+pub mod mesh_scene;
 pub mod output;
 pub mod prepare;
 pub mod run;

@@ -1,0 +1,142 @@
+//! From a segmentation to a model (`brainshift mesh`): a labelmap is meshed by bs-meshgen
+//! and written as a scene folder — `brain.vtu` (world frame in its `SPACE` field data),
+//! `brain.inp`, `skull.off` and a `scene.toml` with default materials per region, the
+//! `FIXED` brain stem and a commented craniotomy — every file written atomically.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use bs_image::Space;
+use bs_mesh::io::Fields;
+use bs_meshgen::{BRAIN_SET, CRANIOTOMY_SET, FIXED_SET};
+/// The meshing types front ends need (re-exported: they build on bs-scene alone).
+pub use bs_meshgen::{ElementType, MeshParams, MeshReport, Meshed, RegionSpec};
+
+use crate::SceneError;
+
+/// The files of a meshed scene folder.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneFiles {
+    /// `brain.vtu` (for viewing, with `SPACE` field data).
+    pub brain_vtu: PathBuf,
+    /// `brain.inp` (what the scene reads).
+    pub brain_inp: PathBuf,
+    /// `skull.off`.
+    pub skull: PathBuf,
+    /// `scene.toml`.
+    pub scene: PathBuf,
+}
+
+/// A labelmap meshed and written as a scene folder.
+#[derive(Debug, Clone)]
+pub struct MeshedScene {
+    /// The mesh, skull and report.
+    pub meshed: Meshed,
+    /// Where they were written.
+    pub files: SceneFiles,
+}
+
+/// Default material of an element set: Young's modulus (Pa) and Poisson's ratio. Tumours
+/// are stiffer than parenchyma, ventricles (CSF-filled, drained or not) far softer and
+/// compressible; anything else is parenchyma.
+pub fn default_material(set: &str) -> (f64, f64, &'static str) {
+    let s = set.to_ascii_lowercase();
+    if s.contains("tumo") {
+        (9000.0, 0.49, "tumour")
+    } else if s.contains("ventric") || s.contains("csf") {
+        (100.0, 0.1, "ventricles")
+    } else {
+        (3000.0, 0.49, "parenchyma")
+    }
+}
+
+/// Reads the labelmap `labels` (NIfTI), meshes it and writes the scene folder `out`
+/// (created if needed).
+pub fn mesh_to_scene(labels: &Path, out: &Path, params: &MeshParams) -> Result<MeshedScene, SceneError> {
+    let volume = bs_image::nifti::read_labels(labels)
+        .map_err(|e| SceneError::Labelmap { file: labels.to_path_buf(), message: e.to_string() })?;
+    let meshed = bs_meshgen::mesh_labelmap(&volume, params)
+        .map_err(|e| SceneError::Labelmap { file: labels.to_path_buf(), message: e.to_string() })?;
+    let files = write_scene_folder(out, &meshed, params, labels, Space::Ras)?;
+    Ok(MeshedScene { meshed, files })
+}
+
+/// Writes `brain.vtu`, `brain.inp`, `skull.off` and `scene.toml` into `out`.
+pub fn write_scene_folder(
+    out: &Path,
+    meshed: &Meshed,
+    params: &MeshParams,
+    source: &Path,
+    space: Space,
+) -> Result<SceneFiles, SceneError> {
+    let werr = |path: &Path, e: &dyn std::fmt::Display| SceneError::Write { path: path.to_path_buf(), message: e.to_string() };
+    std::fs::create_dir_all(out).map_err(|e| werr(out, &e))?;
+    let files = SceneFiles {
+        brain_vtu: out.join("brain.vtu"),
+        brain_inp: out.join("brain.inp"),
+        skull: out.join("skull.off"),
+        scene: out.join("scene.toml"),
+    };
+    bs_mesh::io::write_mesh_in_space(&files.brain_vtu, &meshed.mesh, &Fields::default(), space.name())
+        .map_err(|e| werr(&files.brain_vtu, &e))?;
+    bs_mesh::io::write_mesh(&files.brain_inp, &meshed.mesh, &Fields::default()).map_err(|e| werr(&files.brain_inp, &e))?;
+    bs_mesh::io::write_surface(&files.skull, &meshed.skull).map_err(|e| werr(&files.skull, &e))?;
+    let text = scene_text(meshed, params, source, space, false);
+    bs_mesh::io::write_atomic(&files.scene, |w| w.write_all(text.as_bytes())).map_err(|e| werr(&files.scene, &e))?;
+    Ok(files)
+}
+
+/// The `scene.toml` of a meshed labelmap. With `craniotomy` the craniotomy block is active
+/// (for tests and scripts); otherwise it is a comment to edit and uncomment.
+pub fn scene_text(meshed: &Meshed, params: &MeshParams, source: &Path, space: Space, craniotomy: bool) -> String {
+    let r = &meshed.report;
+    let mut s = String::new();
+    let _ = writeln!(s, "# Made by `brainshift mesh` from {}:", source.display());
+    let _ = writeln!(
+        s,
+        "# {} elements of {} mm, {} nodes; skull cavity {}.",
+        r.elements,
+        params.size,
+        r.nodes,
+        match &params.cavity_labels {
+            Some(l) => format!("inside the labels {l:?}"),
+            None => format!("{} mm outside the brain", params.skull_offset),
+        }
+    );
+    let _ = writeln!(s, "# Coordinates: the image's world frame ({}), mm; brain.vtu carries SPACE = \"{}\".", space.name(), space.name());
+    let _ = writeln!(s, "units = \"mm\"\n");
+    let _ = writeln!(s, "[mesh]\nfile = \"brain.inp\"");
+    let element = match params.element {
+        ElementType::T4 => "t4anp",
+        ElementType::H8 => "h8",
+    };
+    let _ = writeln!(s, "element = \"{element}\"\n");
+    let mut sets: Vec<&str> = vec![BRAIN_SET];
+    let region_names: Vec<String> = params.regions.iter().map(|g| g.name.to_ascii_uppercase()).collect();
+    sets.extend(region_names.iter().map(String::as_str));
+    for set in sets {
+        if meshed.mesh.element_set(set).is_none_or(|e| e.is_empty()) {
+            let _ = writeln!(s, "# (element set {set} is empty at this size: no region written)\n");
+            continue;
+        }
+        let (e, nu, what) = default_material(set);
+        let _ = writeln!(s, "[[region]]  # {what}\nelset = \"{set}\"");
+        let _ = writeln!(
+            s,
+            "material = {{ model = \"neo-hookean\", youngs_modulus = {e:.1}, poisson_ratio = {nu}, density = 1000.0 }}\n"
+        );
+    }
+    let _ = writeln!(s, "# The brain stem: surface nodes at the inferior-most part of the brain, held.");
+    let _ = writeln!(s, "[[boundary]]\nnset = \"{FIXED_SET}\"\nfix = [\"x\", \"y\", \"z\"]\n");
+    let _ = writeln!(
+        s,
+        "# A craniotomy: {CRANIOTOMY_SET} holds the surface nodes near the top of the brain \
+         ({} nodes); edit the displacement (mm) and uncomment to load the brain.",
+        r.craniotomy_nodes
+    );
+    let c = if craniotomy { "" } else { "# " };
+    let _ = writeln!(s, "{c}[[boundary]]\n{c}nset = \"{CRANIOTOMY_SET}\"\n{c}displacement = {{ x = 0.0, y = 0.0, z = -8.0 }}\n");
+    let _ = writeln!(s, "[contact]\nskull = \"skull.off\"\nalgorithm = \"coherent\"\n");
+    let _ = writeln!(s, "[solver]\nkind = \"newton-krylov\"\ntolerance = 1e-3");
+    s
+}
