@@ -33,7 +33,10 @@ pub fn parse_labels(option: &str, text: &str) -> Result<Vec<u32>, String> {
         .split(',')
         .map(|s| {
             s.trim().parse::<u32>().map_err(|_| {
-                format!("{option} {text}: '{}' is not a label value; write values like 1,2,3", s.trim())
+                format!(
+                    "{option} {text}: '{}' is not a label value; write values like 1,2,3",
+                    s.trim()
+                )
             })
         })
         .collect();

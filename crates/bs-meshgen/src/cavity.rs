@@ -29,7 +29,13 @@ use crate::stuffing::{Fill, Stuffed, stuff};
 /// The smoothed offset-and-close field of a brain mask on `work` (negative inside the
 /// cavity, in mm), computed on blocks of `coarsen`³ voxels (the block is brain when at
 /// least half of it is: volume-neutral, positions within half a block).
-pub fn offset_field(work: &WorkGrid, brain: &[f32], offset: f64, closing: f64, coarsen: usize) -> SampledField {
+pub fn offset_field(
+    work: &WorkGrid,
+    brain: &[f32],
+    offset: f64,
+    closing: f64,
+    coarsen: usize,
+) -> SampledField {
     let (grid, brain) = if coarsen > 1 {
         crate::implicit::coarsen(&work.grid, brain, coarsen)
     } else {
@@ -46,7 +52,8 @@ pub fn offset_field(work: &WorkGrid, brain: &[f32], offset: f64, closing: f64, c
     let r = closing as f32;
     // Samples are `dist − closing` (positive inside, like an indicator), so that
     // `eval = 0 − sample` is negative inside.
-    let mut g: Vec<f32> = d2.par_iter().map(|&d| if d.is_finite() { d.sqrt() - r } else { 1e3 }).collect();
+    let mut g: Vec<f32> =
+        d2.par_iter().map(|&d| if d.is_finite() { d.sqrt() - r } else { 1e3 }).collect();
     gaussian_blur(&mut g, dims, [1.0; 3]);
     SampledField { grid, data: g, outside: -r.max(1.0), level: 0.0 }
 }

@@ -71,7 +71,8 @@ pub fn coarsen(grid: &Grid, data: &[f32], f: usize) -> (Grid, Vec<f32>) {
     for a in 0..3 {
         m[(a, 3)] = c;
     }
-    let coarse = Grid::new(dims, grid.voxel_to_world() * m).expect("a scaled valid affine stays valid");
+    let coarse =
+        Grid::new(dims, grid.voxel_to_world() * m).expect("a scaled valid affine stays valid");
     let [cx, cy, _] = dims;
     let mut out = vec![0f32; dims[0] * dims[1] * dims[2]];
     out.par_chunks_mut(cx * cy).enumerate().for_each(|(kk, slab)| {

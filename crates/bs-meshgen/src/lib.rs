@@ -109,8 +109,10 @@ pub struct MeshParams {
     pub closing_radius: f64,
     /// If given, the cavity is the inside of these (skull) labels instead of an offset.
     pub cavity_labels: Option<Vec<u32>>,
-    /// Standard deviation of the Gaussian smoothing the indicator, mm; `None` = the
-    /// largest voxel size (removes the staircase, shrinks a 20 mm ball by < 0.1%).
+    /// Standard deviation of the Gaussian smoothing the indicator, mm; `None` = 0.6 × the
+    /// largest voxel size. The blur damps the voxel staircase (a 45° staircase's ripple by
+    /// e^(−2π²σ²) ≈ 10⁻³) but moves the ½ level inwards by about σ² × mean curvature (mean
+    /// curvature flow for time σ²/2): for a 20 mm ball in 1 mm voxels, −0.3% of volume.
     pub smoothing: Option<f64>,
     /// Lattice spacing of the skull surface, mm; `None` = `size`.
     pub skull_size: Option<f64>,
@@ -291,7 +293,7 @@ pub fn mesh_labelmap(labels: &Volume<u32>, params: &MeshParams) -> Result<Meshed
     let spacing = labels.grid.spacing();
     let max_spacing = spacing.iter().copied().fold(0.0, f64::max);
     let min_spacing = spacing.iter().copied().fold(f64::INFINITY, f64::min);
-    let sigma = params.smoothing.unwrap_or(max_spacing);
+    let sigma = params.smoothing.unwrap_or(0.6 * max_spacing);
     let skull_h = params.skull_size.unwrap_or(params.size);
 
     // Working grid: the brain's voxels plus room for the smoothing, the cavity and the
@@ -392,7 +394,13 @@ pub fn mesh_labelmap(labels: &Volume<u32>, params: &MeshParams) -> Result<Meshed
         None => {
             // The cavity needs no finer field than half its lattice spacing.
             let coarsen = ((skull_h / (2.0 * max_spacing)).floor() as usize).clamp(1, 3);
-            cavity::offset_field(&work, &raw_brain, params.skull_offset, params.closing_radius, coarsen)
+            cavity::offset_field(
+                &work,
+                &raw_brain,
+                params.skull_offset,
+                params.closing_radius,
+                coarsen,
+            )
         }
         Some(sk) => {
             let skull_ind = work.indicator(labels, |l| sk.contains(&l));

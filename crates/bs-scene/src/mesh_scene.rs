@@ -52,7 +52,11 @@ pub fn default_material(set: &str) -> (f64, f64, &'static str) {
 
 /// Reads the labelmap `labels` (NIfTI), meshes it and writes the scene folder `out`
 /// (created if needed).
-pub fn mesh_to_scene(labels: &Path, out: &Path, params: &MeshParams) -> Result<MeshedScene, SceneError> {
+pub fn mesh_to_scene(
+    labels: &Path,
+    out: &Path,
+    params: &MeshParams,
+) -> Result<MeshedScene, SceneError> {
     let volume = bs_image::nifti::read_labels(labels)
         .map_err(|e| SceneError::Labelmap { file: labels.to_path_buf(), message: e.to_string() })?;
     let meshed = bs_meshgen::mesh_labelmap(&volume, params)
@@ -69,7 +73,10 @@ pub fn write_scene_folder(
     source: &Path,
     space: Space,
 ) -> Result<SceneFiles, SceneError> {
-    let werr = |path: &Path, e: &dyn std::fmt::Display| SceneError::Write { path: path.to_path_buf(), message: e.to_string() };
+    let werr = |path: &Path, e: &dyn std::fmt::Display| SceneError::Write {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
     std::fs::create_dir_all(out).map_err(|e| werr(out, &e))?;
     let files = SceneFiles {
         brain_vtu: out.join("brain.vtu"),
@@ -77,18 +84,31 @@ pub fn write_scene_folder(
         skull: out.join("skull.off"),
         scene: out.join("scene.toml"),
     };
-    bs_mesh::io::write_mesh_in_space(&files.brain_vtu, &meshed.mesh, &Fields::default(), space.name())
-        .map_err(|e| werr(&files.brain_vtu, &e))?;
-    bs_mesh::io::write_mesh(&files.brain_inp, &meshed.mesh, &Fields::default()).map_err(|e| werr(&files.brain_inp, &e))?;
+    bs_mesh::io::write_mesh_in_space(
+        &files.brain_vtu,
+        &meshed.mesh,
+        &Fields::default(),
+        space.name(),
+    )
+    .map_err(|e| werr(&files.brain_vtu, &e))?;
+    bs_mesh::io::write_mesh(&files.brain_inp, &meshed.mesh, &Fields::default())
+        .map_err(|e| werr(&files.brain_inp, &e))?;
     bs_mesh::io::write_surface(&files.skull, &meshed.skull).map_err(|e| werr(&files.skull, &e))?;
     let text = scene_text(meshed, params, source, space, false);
-    bs_mesh::io::write_atomic(&files.scene, |w| w.write_all(text.as_bytes())).map_err(|e| werr(&files.scene, &e))?;
+    bs_mesh::io::write_atomic(&files.scene, |w| w.write_all(text.as_bytes()))
+        .map_err(|e| werr(&files.scene, &e))?;
     Ok(files)
 }
 
 /// The `scene.toml` of a meshed labelmap. With `craniotomy` the craniotomy block is active
 /// (for tests and scripts); otherwise it is a comment to edit and uncomment.
-pub fn scene_text(meshed: &Meshed, params: &MeshParams, source: &Path, space: Space, craniotomy: bool) -> String {
+pub fn scene_text(
+    meshed: &Meshed,
+    params: &MeshParams,
+    source: &Path,
+    space: Space,
+    craniotomy: bool,
+) -> String {
     let r = &meshed.report;
     let mut s = String::new();
     let _ = writeln!(s, "# Made by `brainshift mesh` from {}:", source.display());
@@ -103,7 +123,12 @@ pub fn scene_text(meshed: &Meshed, params: &MeshParams, source: &Path, space: Sp
             None => format!("{} mm outside the brain", params.skull_offset),
         }
     );
-    let _ = writeln!(s, "# Coordinates: the image's world frame ({}), mm; brain.vtu carries SPACE = \"{}\".", space.name(), space.name());
+    let _ = writeln!(
+        s,
+        "# Coordinates: the image's world frame ({}), mm; brain.vtu carries SPACE = \"{}\".",
+        space.name(),
+        space.name()
+    );
     let _ = writeln!(s, "units = \"mm\"\n");
     let _ = writeln!(s, "[mesh]\nfile = \"brain.inp\"");
     let element = match params.element {
@@ -112,7 +137,8 @@ pub fn scene_text(meshed: &Meshed, params: &MeshParams, source: &Path, space: Sp
     };
     let _ = writeln!(s, "element = \"{element}\"\n");
     let mut sets: Vec<&str> = vec![BRAIN_SET];
-    let region_names: Vec<String> = params.regions.iter().map(|g| g.name.to_ascii_uppercase()).collect();
+    let region_names: Vec<String> =
+        params.regions.iter().map(|g| g.name.to_ascii_uppercase()).collect();
     sets.extend(region_names.iter().map(String::as_str));
     for set in sets {
         if meshed.mesh.element_set(set).is_none_or(|e| e.is_empty()) {
@@ -126,7 +152,10 @@ pub fn scene_text(meshed: &Meshed, params: &MeshParams, source: &Path, space: Sp
             "material = {{ model = \"neo-hookean\", youngs_modulus = {e:.1}, poisson_ratio = {nu}, density = 1000.0 }}\n"
         );
     }
-    let _ = writeln!(s, "# The brain stem: surface nodes at the inferior-most part of the brain, held.");
+    let _ = writeln!(
+        s,
+        "# The brain stem: surface nodes at the inferior-most part of the brain, held."
+    );
     let _ = writeln!(s, "[[boundary]]\nnset = \"{FIXED_SET}\"\nfix = [\"x\", \"y\", \"z\"]\n");
     let _ = writeln!(
         s,
@@ -135,7 +164,10 @@ pub fn scene_text(meshed: &Meshed, params: &MeshParams, source: &Path, space: Sp
         r.craniotomy_nodes
     );
     let c = if craniotomy { "" } else { "# " };
-    let _ = writeln!(s, "{c}[[boundary]]\n{c}nset = \"{CRANIOTOMY_SET}\"\n{c}displacement = {{ x = 0.0, y = 0.0, z = -8.0 }}\n");
+    let _ = writeln!(
+        s,
+        "{c}[[boundary]]\n{c}nset = \"{CRANIOTOMY_SET}\"\n{c}displacement = {{ x = 0.0, y = 0.0, z = -8.0 }}\n"
+    );
     let _ = writeln!(s, "[contact]\nskull = \"skull.off\"\nalgorithm = \"coherent\"\n");
     let _ = writeln!(s, "[solver]\nkind = \"newton-krylov\"\ntolerance = 1e-3");
     s

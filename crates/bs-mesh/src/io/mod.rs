@@ -274,7 +274,13 @@ pub fn write_mesh_in_space(
 ) -> Result<(), MeshIoError> {
     match Format::from_path(path) {
         Some(Format::Vtu) => write_atomic(path, |w| {
-            vtu::write_with_field_data(w, mesh, fields, vtu::Encoding::Appended, &[("SPACE", space)])
+            vtu::write_with_field_data(
+                w,
+                mesh,
+                fields,
+                vtu::Encoding::Appended,
+                &[("SPACE", space)],
+            )
         }),
         _ => write_mesh(path, mesh, fields),
     }

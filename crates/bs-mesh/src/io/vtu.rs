@@ -1062,12 +1062,20 @@ mod tests {
     fn space_field_data_is_written_and_skipped_on_read() {
         let mesh = crate::structured::box_mesh(1, 1.0, true);
         let mut out = Vec::new();
-        write_with_field_data(&mut out, &mesh, &Fields::default(), Encoding::Inline, &[("SPACE", "RAS")])
-            .unwrap();
+        write_with_field_data(
+            &mut out,
+            &mesh,
+            &Fields::default(),
+            Encoding::Inline,
+            &[("SPACE", "RAS")],
+        )
+        .unwrap();
         let text = String::from_utf8(out.clone()).unwrap();
         let fd = text.find("<FieldData>").unwrap();
         assert!(fd < text.find("<Piece").unwrap());
-        assert!(text.contains("type=\"String\" Name=\"SPACE\" NumberOfTuples=\"1\" format=\"ascii\">\n82 65 83 0\n"));
+        assert!(text.contains(
+            "type=\"String\" Name=\"SPACE\" NumberOfTuples=\"1\" format=\"ascii\">\n82 65 83 0\n"
+        ));
         let (back, _) = read(&out, Path::new("t.vtu")).unwrap();
         assert_eq!(back.nodes, mesh.nodes);
         assert_eq!(back.elements, mesh.elements);
