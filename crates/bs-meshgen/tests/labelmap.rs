@@ -287,8 +287,8 @@ fn hexahedra_follow_the_grid() {
 }
 
 /// `--cavity`: the skull is the inside of a shell label (r in [17, 20]) around a ball brain
-/// of radius 14: the cavity's volume within 3% of 4/3 π 17³ (voxel boundary half a voxel
-/// out: ~+9%·0.5/17... measured below), brain inside.
+/// of radius 14: the cavity's volume within 3% of 4/3 π 17³ (the enclosed voxels end
+/// within half a voxel of r = 17: ±9% × 0.5/17 at worst), brain inside.
 #[test]
 fn cavity_from_skull_labels() {
     let grid = Grid::axis_aligned([50, 50, 50], [1.0; 3], [-24.5, -24.5, -24.5]).unwrap();

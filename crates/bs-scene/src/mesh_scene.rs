@@ -172,3 +172,75 @@ pub fn scene_text(
     let _ = writeln!(s, "[solver]\nkind = \"newton-krylov\"\ntolerance = 1e-3");
     s
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bs_image::{Grid, Volume};
+    use bs_meshgen::RegionSpec;
+
+    /// A labelmap written as NIfTI (oblique affine), meshed into a folder: every file is
+    /// there, the scene parses, and with the craniotomy switched on `check` passes — sets
+    /// resolved, materials valid, the skull closed and outward, and every brain surface
+    /// node inside it by the exact distance (the gap must be positive; 3 mm offset minus
+    /// half a voxel and the 2 mm cavity blocks leaves about 2.5 mm).
+    #[test]
+    fn labelmap_to_scene_folder_that_checks() {
+        let dir = std::env::temp_dir().join(format!("bs-mesh-scene-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let rot = nalgebra::Rotation3::from_euler_angles(0.3, 0.2, -0.4).to_homogeneous();
+        let mut m = rot * nalgebra::Matrix4::new_scaling(1.0);
+        m[(3, 3)] = 1.0;
+        m[(0, 3)] = -20.0;
+        m[(1, 3)] = -25.0;
+        m[(2, 3)] = -15.0;
+        let grid = Grid::new([44, 44, 44], m).unwrap();
+        let mut v = Volume::filled(grid, 0u32);
+        for k in 0..44 {
+            for j in 0..44 {
+                for i in 0..44 {
+                    let r = (nalgebra::Vector3::new(i as f64, j as f64, k as f64)
+                        - nalgebra::Vector3::repeat(21.5))
+                    .norm();
+                    let id = v.grid.index(i, j, k);
+                    v.data[id] = if r < 5.0 {
+                        5
+                    } else if r < 16.0 {
+                        1
+                    } else {
+                        0
+                    };
+                }
+            }
+        }
+        let labels = dir.join("labels.nii.gz");
+        bs_image::nifti::write_labels(&labels, &v, None).unwrap();
+        let params = MeshParams {
+            size: 2.5,
+            regions: vec![RegionSpec { name: "tumour".into(), labels: vec![5] }],
+            ..MeshParams::default()
+        };
+        let out = dir.join("model");
+        let done = mesh_to_scene(&labels, &out, &params).unwrap();
+        for f in [&done.files.brain_vtu, &done.files.brain_inp, &done.files.skull, &done.files.scene] {
+            assert!(f.is_file(), "{}", f.display());
+        }
+        let vtu = std::fs::read_to_string(&done.files.brain_vtu).unwrap();
+        assert!(vtu.contains("Name=\"SPACE\"") && vtu.contains("82 65 83 0"));
+        let scene = crate::Scene::load(&done.files.scene).unwrap();
+        assert_eq!(scene.regions.len(), 2);
+        assert_eq!(scene.regions[1].elset, "TUMOUR");
+        assert_eq!(scene.regions[1].material.youngs_modulus, Some(9000.0));
+        // With the commented craniotomy active the scene is complete: check it.
+        let loaded = out.join("scene-craniotomy.toml");
+        std::fs::write(&loaded, scene_text(&done.meshed, &params, &labels, Space::Ras, true)).unwrap();
+        let checked = crate::check::check(&loaded).unwrap();
+        let (min_gap, _) = checked.initial_gap.unwrap();
+        assert!(min_gap > 1.5, "initial gap {min_gap}");
+        // A labelmap that cannot be read names the file.
+        let e = mesh_to_scene(&dir.join("missing.nii"), &out, &params).unwrap_err();
+        assert!(e.to_string().contains("missing.nii"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
