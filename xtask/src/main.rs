@@ -11,6 +11,9 @@
 //!   processes: preparation and solve times, iterations, accuracy against CalculiX, peak
 //!   memory, speed-up (table in `docs/benchmarks.md`).
 //!
+//! * `bench mesh`: `brainshift mesh` at 4 mm on the MNI152 mask and an MNI-sized
+//!   ellipsoid labelmap, 1 and 2 threads.
+//!
 //! * `validate`: every reference case in one table, written to `docs/validation.md`.
 //! * `chart`: speed against accuracy over mesh density, element, DR tolerance, contact
 //!   handler and solver, with CalculiX's points and the Pareto front (`docs/charts/`).
@@ -26,6 +29,7 @@
 
 mod bench_contact;
 mod bench_e2e;
+mod bench_mesh;
 mod bench_solver;
 mod chart;
 mod deps;
@@ -55,6 +59,8 @@ Commands:
   bench e2e       [--case NAME] [--repeat N] every contact fixture solved by DR (baseline) and
                   Newton-Krylov (default): preparation, solve, iterations, accuracy against
                   CalculiX, peak memory, speed-up (writes docs/benchmarks.md)
+  bench mesh      meshing a labelmap at 4 mm (MNI152 mask and an MNI-sized ellipsoid), 1 and 2
+                  threads (release)
   validate        [--quick] every reference case (closed forms, DR vs Newton, contact vs brute
                   force, DR + contact vs CalculiX); writes docs/validation.md (release)
   chart           [--case NAME] speed vs accuracy: mesh density, element, DR tolerance, contact
@@ -135,8 +141,9 @@ fn main() -> ExitCode {
             Some("solver") => report(bench_solver::run(), "bench solver"),
             Some("contact") => report(bench_contact::main(), "bench contact"),
             Some("e2e") => report(bench_e2e::main(&args[2..]), "bench e2e"),
+            Some("mesh") => report(bench_mesh::main(), "bench mesh"),
             _ => {
-                eprintln!("bench what? `cargo xtask bench solver`, `bench contact` or `bench e2e`");
+                eprintln!("bench what? `cargo xtask bench solver`, `bench contact`, `bench e2e` or `bench mesh`");
                 ExitCode::from(2)
             }
         },
