@@ -35,7 +35,10 @@ fn ellipsoid() -> Result<Volume<u32>, String> {
 fn bench(name: &str, labels: &Volume<u32>) -> Result<(), String> {
     let params = MeshParams::default();
     for threads in [1, 2] {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| e.to_string())?;
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| e.to_string())?;
         let mut times = Vec::new();
         let mut best: Option<(f64, bs_meshgen::MeshReport)> = None;
         for run in 0..6 {

@@ -18,7 +18,10 @@ pub const ALLOWED: &[(&str, &[&str])] = &[
     ("bs-dr", &["bs-mesh", "bs-material"]),
     ("bs-scene", &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-image", "bs-meshgen"]),
     ("bs-cli", &["bs-mesh", "bs-dr", "bs-contact", "bs-scene"]),
-    ("xtask", &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-scene", "bs-image", "bs-meshgen"]),
+    (
+        "xtask",
+        &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-scene", "bs-image", "bs-meshgen"],
+    ),
 ];
 
 /// Extra edges allowed for dev-dependencies only (tests checking a front end against a

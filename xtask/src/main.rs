@@ -143,7 +143,9 @@ fn main() -> ExitCode {
             Some("e2e") => report(bench_e2e::main(&args[2..]), "bench e2e"),
             Some("mesh") => report(bench_mesh::main(), "bench mesh"),
             _ => {
-                eprintln!("bench what? `cargo xtask bench solver`, `bench contact`, `bench e2e` or `bench mesh`");
+                eprintln!(
+                    "bench what? `cargo xtask bench solver`, `bench contact`, `bench e2e` or `bench mesh`"
+                );
                 ExitCode::from(2)
             }
         },

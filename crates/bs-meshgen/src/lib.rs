@@ -160,13 +160,11 @@ fn check_params(labels: &Volume<u32>, p: &MeshParams) -> Result<(), MeshgenError
     positive("--size", p.size)?;
     positive("--skull-offset", p.skull_offset)?;
     positive("closing radius", p.closing_radius)?;
-    if let Some(s) = p.smoothing {
-        if !(s.is_finite() && s >= 0.0) {
-            return Err(MeshgenError::Param {
-                name: "smoothing",
-                message: format!("{s} must be ≥ 0 mm"),
-            });
-        }
+    if let Some(s) = p.smoothing.filter(|s| !(s.is_finite() && *s >= 0.0)) {
+        return Err(MeshgenError::Param {
+            name: "smoothing",
+            message: format!("{s} must be ≥ 0 mm"),
+        });
     }
     if let Some(s) = p.skull_size {
         positive("skull size", s)?;

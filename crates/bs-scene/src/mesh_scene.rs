@@ -223,7 +223,9 @@ mod tests {
         };
         let out = dir.join("model");
         let done = mesh_to_scene(&labels, &out, &params).unwrap();
-        for f in [&done.files.brain_vtu, &done.files.brain_inp, &done.files.skull, &done.files.scene] {
+        for f in
+            [&done.files.brain_vtu, &done.files.brain_inp, &done.files.skull, &done.files.scene]
+        {
             assert!(f.is_file(), "{}", f.display());
         }
         let vtu = std::fs::read_to_string(&done.files.brain_vtu).unwrap();
@@ -234,7 +236,8 @@ mod tests {
         assert_eq!(scene.regions[1].material.youngs_modulus, Some(9000.0));
         // With the commented craniotomy active the scene is complete: check it.
         let loaded = out.join("scene-craniotomy.toml");
-        std::fs::write(&loaded, scene_text(&done.meshed, &params, &labels, Space::Ras, true)).unwrap();
+        std::fs::write(&loaded, scene_text(&done.meshed, &params, &labels, Space::Ras, true))
+            .unwrap();
         let checked = crate::check::check(&loaded).unwrap();
         let (min_gap, _) = checked.initial_gap.unwrap();
         assert!(min_gap > 1.5, "initial gap {min_gap}");
