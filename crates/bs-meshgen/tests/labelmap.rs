@@ -334,3 +334,25 @@ fn bad_labels_and_regions_are_named() {
     let p = MeshParams { size: -1.0, ..Default::default() };
     assert!(mesh_labelmap(&lm, &p).unwrap_err().to_string().contains("--size"));
 }
+
+/// The real MNI152 labelmap (`fixtures/mni152/labels.nii.gz`: brain label 1, lateral
+/// ventricles label 4, 1 mm, sform affine) at 6 mm with the ventricles as a region, and as
+/// H8: the stuffing bound holds with the interface cut in, the brain volume is within 1%
+/// of the voxels', and both skulls are valid with the brain inside.
+#[test]
+fn mni152_labels_with_ventricles() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures/mni152/labels.nii.gz");
+    let lm = bs_image::nifti::read_labels(&path).unwrap();
+    let params = MeshParams {
+        size: 6.0,
+        regions: vec![RegionSpec { name: "ventricles".into(), labels: vec![4] }],
+        ..Default::default()
+    };
+    let m = mesh_labelmap(&lm, &params).unwrap();
+    assert_in_bound(&m);
+    assert!(m.report.volume_error().abs() < 0.01, "{}", m.report);
+    assert!(!m.mesh.element_set("VENTRICLES").unwrap().is_empty());
+    let h8 = mesh_labelmap(&lm, &MeshParams { element: ElementType::H8, ..params }).unwrap();
+    assert!(h8.report.min_gap_estimate > 1.0 && h8.report.quality.inverted == 0, "{}", h8.report);
+}
