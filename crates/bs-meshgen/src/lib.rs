@@ -91,6 +91,10 @@ pub const FIXED_SET: &str = "FIXED";
 /// The node set of surface nodes near the top of the brain, for a craniotomy load.
 pub const CRANIOTOMY_SET: &str = "CRANIOTOMY";
 
+/// Largest lattice (or grid) size accepted: 50 million vertices, about 2 GB of working
+/// memory and far beyond any brain model (1 mm over MNI152 is 9 million).
+pub const MAX_LATTICE_VERTICES: f64 = 50e6;
+
 /// How to mesh a labelmap.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MeshParams {
@@ -328,6 +332,25 @@ pub fn mesh_labelmap(labels: &Volume<u32>, params: &MeshParams) -> Result<Meshed
     let (mut lo, mut hi) = world_box(&inner.grid);
     lo -= Vector3::repeat(2.0 * sigma);
     hi += Vector3::repeat(2.0 * sigma);
+    // Lattice sizes are bounded before anything is allocated (node ids are 32-bit and a
+    // 0.1 mm lattice over a brain would need tens of GB).
+    for (name, h, extra) in [
+        ("--size", params.size, 0.0),
+        ("skull size", skull_h, 2.0 * (params.skull_offset + params.closing_radius + params.size)),
+    ] {
+        let cells: f64 = (0..3).map(|a| (hi[a] - lo[a] + extra) / h + 4.0).product();
+        if 2.0 * cells > MAX_LATTICE_VERTICES {
+            let smallest = h * (2.0 * cells / MAX_LATTICE_VERTICES).cbrt();
+            return Err(MeshgenError::Param {
+                name,
+                message: format!(
+                    "{h} mm needs about {:.0} million lattice vertices over the brain (limit {:.0} million); give at least {smallest:.2} mm",
+                    2.0 * cells / 1e6,
+                    MAX_LATTICE_VERTICES / 1e6
+                ),
+            });
+        }
+    }
     let f = |p: &Point3<f64>| brain.eval(p);
 
     let (mut mesh, surface_nodes, labels_of, warped) = match params.element {

@@ -333,6 +333,10 @@ fn bad_labels_and_regions_are_named() {
     assert!(mesh_labelmap(&lm, &p).unwrap_err().to_string().contains("not part of --brain"));
     let p = MeshParams { size: -1.0, ..Default::default() };
     assert!(mesh_labelmap(&lm, &p).unwrap_err().to_string().contains("--size"));
+    // A lattice too fine to hold is refused with the smallest size that fits.
+    let p = MeshParams { size: 0.02, ..Default::default() };
+    let e = mesh_labelmap(&lm, &p).unwrap_err().to_string();
+    assert!(e.contains("--size") && e.contains("give at least"), "{e}");
 }
 
 /// The real MNI152 labelmap (`fixtures/mni152/labels.nii.gz`: brain label 1, lateral
