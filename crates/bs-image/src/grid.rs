@@ -22,7 +22,9 @@ impl Grid {
             return Err(ImageError::Grid(format!("grid size {dims:?} has a zero dimension")));
         }
         if voxel_to_world.iter().any(|v| !v.is_finite()) {
-            return Err(ImageError::Grid("the voxel-to-world affine has a non-finite entry".into()));
+            return Err(ImageError::Grid(
+                "the voxel-to-world affine has a non-finite entry".into(),
+            ));
         }
         let last = voxel_to_world.row(3);
         if last[0] != 0.0 || last[1] != 0.0 || last[2] != 0.0 || last[3] != 1.0 {

@@ -47,6 +47,7 @@ pub mod scene;
 pub mod skull_contact;
 pub mod solve;
 pub mod study;
+pub mod sweep;
 pub mod verdict;
 pub mod verify;
 
