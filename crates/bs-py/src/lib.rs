@@ -177,8 +177,10 @@ fn index_sets(
 
 /// A skull given as a path or as `(vertices, triangles)`.
 fn skull_of(py: Python<'_>, skull: &Bound<'_, PyAny>) -> PyResult<(TriSurface, PathBuf)> {
-    if let Ok(t) = skull.cast::<PyTuple>() {
-        if t.len() == 2 {
+    if let Ok(t) = skull.cast::<PyTuple>()
+        && t.len() == 2
+    {
+        {
             let vertices = f64_rows(py, &t.get_item(0)?, 3, "skull vertices")?;
             let n = vertices.len();
             let tris = index_rows(py, &t.get_item(1)?, &[3], n, "skull triangles")?;

@@ -162,15 +162,15 @@ pub fn plan_text(sweep: &Path, text: &str, out: &Path) -> Result<Manifest, Sweep
     };
     let json = serde_json::to_string_pretty(&manifest).expect("a manifest serialises");
     let json_path = out.join("manifest.json");
-    if let Ok(existing) = std::fs::read_to_string(&json_path) {
-        if existing.trim_end() != json {
-            return Err(SweepError::Dir {
-                dir: out.to_path_buf(),
-                message: "a different sweep is already planned in this folder; plan into \
-                          another --out folder or delete this one"
-                    .into(),
-            });
-        }
+    if let Ok(existing) = std::fs::read_to_string(&json_path)
+        && existing.trim_end() != json
+    {
+        return Err(SweepError::Dir {
+            dir: out.to_path_buf(),
+            message: "a different sweep is already planned in this folder; plan into \
+                      another --out folder or delete this one"
+                .into(),
+        });
     }
 
     // Every row's scene is built and checked before anything is written.
@@ -373,15 +373,15 @@ fn absolutise(t: &mut Table, dir: &Path) -> Result<(), String> {
         }
         Ok(())
     };
-    if let Some(Value::Table(m)) = t.get_mut("mesh") {
-        if let Some(f) = m.get_mut("file") {
-            fix(f)?;
-        }
+    if let Some(Value::Table(m)) = t.get_mut("mesh")
+        && let Some(f) = m.get_mut("file")
+    {
+        fix(f)?;
     }
-    if let Some(Value::Table(c)) = t.get_mut("contact") {
-        if let Some(f) = c.get_mut("skull") {
-            fix(f)?;
-        }
+    if let Some(Value::Table(c)) = t.get_mut("contact")
+        && let Some(f) = c.get_mut("skull")
+    {
+        fix(f)?;
     }
     if let Some(Value::Array(bs)) = t.get_mut("boundary") {
         for b in bs {
