@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # CI for the Python bindings (crates/bs-py): a venv with maturin, pytest, numpy and
-# dask[distributed]; the `brainshift` wheel built and installed with the README's one
-# command (`pip install ./crates/bs-py`); the CLI built in release for the comparisons; the
+# dask[distributed]; the `brainshift` wheel built (release) and installed with the README's
+# one command (`pip install ./crates/bs-py`); the CLI for the comparisons; the
 # pytest suite (bit-identity with the CLI, errors, Dask sweeps, Slurm tasks by hand); and,
 # where the Slurm daemons can run (root, Debian's slurm-wlm), a real one-node Slurm
 # submission of an emitted sweep script (.ci/slurm.sh).
@@ -19,9 +19,15 @@ echo "== python venv ($venv)"
 python -m pip install -q --upgrade pip
 python -m pip install -q maturin pytest numpy "dask[distributed]"
 
-echo "== brainshift CLI (release)"
-cargo build --release -p bs-cli
-export BRAINSHIFT_BIN=$target/release/brainshift
+# The CLI to compare with: the debug build `cargo test --workspace` has just made in .ci/run
+# (a no-op here then; a release build would compile every dependency a second time for
+# nothing: the displacements are bit-identical across profiles, which the tests check,
+# since the wheel is a release build). BRAINSHIFT_BIN overrides it.
+if [ -z "${BRAINSHIFT_BIN:-}" ]; then
+  echo "== brainshift CLI"
+  cargo build -p bs-cli
+  export BRAINSHIFT_BIN=$target/debug/brainshift
+fi
 
 echo "== pip install ./crates/bs-py"
 python -m pip install -q ./crates/bs-py

@@ -14,7 +14,7 @@ use std::time::Instant;
 use bs_contact::{Handler, MasterSurface, PaperParams};
 use bs_mesh::{Element, Mesh, Point3, TriSurface};
 use bs_scene::output::{RunContext, report, write_outputs};
-use bs_scene::scene::Algorithm;
+use bs_scene::scene::{Algorithm, MaterialModel};
 use bs_scene::sweep::{self, RowOutcome, SlurmOptions, SweepError};
 use bs_scene::{Prepared, Run, SceneError, Solved};
 use numpy::ndarray::Array2;
@@ -328,7 +328,14 @@ impl Scene {
             let rd = PyDict::new(py);
             rd.set_item("elset", &region.elset)?;
             rd.set_item("elements", p.region_of_element.iter().filter(|&&x| x == r).count())?;
-            rd.set_item("model", format!("{:?}", region.material.model))?;
+            rd.set_item(
+                "model",
+                match region.material.model {
+                    MaterialModel::NeoHookean => "neo-hookean",
+                    MaterialModel::Svk => "svk",
+                    MaterialModel::Ogden => "ogden",
+                },
+            )?;
             rd.set_item("shear_modulus", m.mu)?;
             rd.set_item("bulk_modulus", m.kappa)?;
             regions.append(rd)?;

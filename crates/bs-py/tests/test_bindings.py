@@ -123,6 +123,8 @@ def test_a_scene_from_arrays_equals_the_scene_file(fixtures):
     assert scene.num_nodes == len(mesh["nodes"])
     report = scene.check()
     assert report["element"] == "t4" and report["skull"] is None and report["moved_nodes"] > 0
+    assert report["regions"][0]["model"] == "neo-hookean"
+    assert str(scene.path) == "<arrays>"
     from_arrays = scene.run(threads=1).displacements
     from_file = Scene.from_toml(fixtures / "cube/uniaxial-t4.toml").run(threads=1).displacements
     assert np.array_equal(from_arrays, from_file)
