@@ -180,16 +180,14 @@ fn skull_of(py: Python<'_>, skull: &Bound<'_, PyAny>) -> PyResult<(TriSurface, P
     if let Ok(t) = skull.cast::<PyTuple>()
         && t.len() == 2
     {
-        {
-            let vertices = f64_rows(py, &t.get_item(0)?, 3, "skull vertices")?;
-            let n = vertices.len();
-            let tris = index_rows(py, &t.get_item(1)?, &[3], n, "skull triangles")?;
-            let surface = TriSurface::new(
-                vertices.into_iter().map(|v| Point3::new(v[0], v[1], v[2])).collect(),
-                tris.into_iter().map(|t| [t[0], t[1], t[2]]).collect(),
-            );
-            return Ok((surface, PathBuf::from("<skull arrays>")));
-        }
+        let vertices = f64_rows(py, &t.get_item(0)?, 3, "skull vertices")?;
+        let n = vertices.len();
+        let tris = index_rows(py, &t.get_item(1)?, &[3], n, "skull triangles")?;
+        let surface = TriSurface::new(
+            vertices.into_iter().map(|v| Point3::new(v[0], v[1], v[2])).collect(),
+            tris.into_iter().map(|t| [t[0], t[1], t[2]]).collect(),
+        );
+        return Ok((surface, PathBuf::from("<skull arrays>")));
     }
     let path: PathBuf = skull.extract().map_err(|_| {
         PyValueError::new_err("skull must be a path or a tuple (vertices (n, 3), triangles (m, 3))")
