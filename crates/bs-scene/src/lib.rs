@@ -17,6 +17,9 @@
 //!   maps measure), [`verdict`]: how such a run ended, and [`findings`]: the
 //!   speed-versus-accuracy results, typed end to end.
 //!
+//! [`sweep`] turns one scene into a parameter sweep: a folder of planned scenes, runs that
+//! any runner (a loop, a Slurm array, Dask workers) fills idempotently, and one table.
+//!
 //! [`calculix`] writes a scene as a CalculiX deck and reads the reference solutions back.
 //!
 //! Every error is a [`SceneError`] naming the file and the key, set, node or element.
@@ -47,6 +50,7 @@ pub mod scene;
 pub mod skull_contact;
 pub mod solve;
 pub mod study;
+pub mod sweep;
 pub mod verdict;
 pub mod verify;
 
