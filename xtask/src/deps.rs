@@ -18,6 +18,7 @@ pub const ALLOWED: &[(&str, &[&str])] = &[
     ("bs-dr", &["bs-mesh", "bs-material"]),
     ("bs-scene", &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-image", "bs-meshgen"]),
     ("bs-cli", &["bs-mesh", "bs-dr", "bs-contact", "bs-scene"]),
+    ("bs-py", &["bs-mesh", "bs-contact", "bs-scene"]),
     (
         "xtask",
         &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-scene", "bs-image", "bs-meshgen"],
@@ -38,12 +39,16 @@ fn rule_for(from: &str, to: &str) -> &'static str {
         ("bs-cli", "bs-material") => {
             "bs-cli is a front end: materials are built by bs-scene from the scene's moduli"
         }
+        ("bs-py", _) => {
+            "bs-py is a front end like bs-cli: it calls bs-scene (and reads meshes and skulls \
+             with bs-mesh and bs-contact), so Python results are the command's"
+        }
         ("xtask", "bs-cli") => {
             "xtask drives bs-scene, as every front end does, not the binary's code"
         }
         ("bs-material", _) => "materials know no meshes, elements or solvers",
         ("bs-mesh", _) => "bs-mesh is the bottom layer and depends on no other brainshift crate",
-        _ => "only bs-scene composes the layers; front ends (bs-cli, xtask) build on it",
+        _ => "only bs-scene composes the layers; front ends (bs-cli, bs-py, xtask) build on it",
     }
 }
 

@@ -7,6 +7,7 @@ pub mod gap;
 pub mod inspect;
 pub mod mesh;
 pub mod run;
+pub mod sweep;
 
 /// Writes `text` to standard output. A closed pipe (`brainshift inspect x | head`) is not an
 /// error worth a message: the reader has what it wanted, so the program ends quietly.

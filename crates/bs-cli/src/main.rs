@@ -1,6 +1,6 @@
 //! `brainshift`: brain shift computation for image-guided neurosurgery.
 
-use bs_cli::{check, gap, inspect, mesh, run};
+use bs_cli::{check, gap, inspect, mesh, run, sweep};
 use bs_scene::scene;
 
 use std::path::PathBuf;
@@ -111,6 +111,65 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Parameter sweeps: plan one scene per row from a sweep file, run rows (anywhere, in
+    /// any order, idempotently), collect one table, or emit a Slurm array job.
+    #[command(subcommand)]
+    Sweep(SweepCommand),
+}
+
+#[derive(Debug, Subcommand)]
+enum SweepCommand {
+    /// Expands SWEEP.toml (base scene, [[axis]] keys with values or range + samples, grid or
+    /// Latin hypercube) into DIR/manifest.csv, DIR/manifest.json and DIR/scenes/I.toml.
+    Plan {
+        /// The sweep file (TOML).
+        sweep: PathBuf,
+        /// The sweep folder (created if missing).
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Runs row I into DIR/runs/I/ (the files `run` writes). A row already done is skipped;
+    /// a failed row writes DIR/runs/I/error.json and exits non-zero.
+    Run {
+        /// The sweep folder.
+        dir: PathBuf,
+        /// The row (0-based; the Slurm array index).
+        #[arg(long)]
+        index: usize,
+        /// Worker threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// No summary output.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Writes DIR/summary.csv: every row's parameters, status (ok/failed/missing), error,
+    /// max displacement, displacement at named points, nodes in contact and solve time.
+    Collect {
+        /// The sweep folder.
+        dir: PathBuf,
+        /// CSV of named reference points with a header name,x,y,z (mesh units).
+        #[arg(long)]
+        points: Option<PathBuf>,
+    },
+    /// Writes DIR/sweep.slurm: a Slurm array job with one task per row, memory from the
+    /// scene's estimate (as `check` prints it).
+    EmitSlurm {
+        /// The sweep folder.
+        dir: PathBuf,
+        /// Run at most M rows at once.
+        #[arg(long)]
+        max_parallel: Option<usize>,
+        /// Wall-time limit per row (HH:MM:SS).
+        #[arg(long, default_value = "01:00:00")]
+        time: String,
+        /// Cores per row (passed on as --threads).
+        #[arg(long, default_value_t = 2)]
+        cpus_per_task: usize,
+        /// The brainshift program the tasks call (default: this one).
+        #[arg(long)]
+        program: Option<PathBuf>,
+    },
 }
 
 /// Contact algorithms selectable on the command line.
@@ -165,6 +224,16 @@ fn main() -> ExitCode {
             };
             query.and_then(|q| gap::run(&skull, &q, algorithm, out.as_deref()))
         }
+        Command::Sweep(c) => match c {
+            SweepCommand::Plan { sweep, out } => sweep::plan(&sweep, &out),
+            SweepCommand::Run { dir, index, threads, quiet } => {
+                sweep::run(&dir, index, threads, quiet)
+            }
+            SweepCommand::Collect { dir, points } => sweep::collect(&dir, points.as_deref()),
+            SweepCommand::EmitSlurm { dir, max_parallel, time, cpus_per_task, program } => {
+                sweep::emit_slurm(&dir, max_parallel, &time, cpus_per_task, program)
+            }
+        },
     };
     match result {
         Ok(code) => code,

@@ -97,10 +97,9 @@ fn stop_if_interrupted(what: &str) {
     }
 }
 
-/// Runs a scene end to end.
-pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
-    let started = Instant::now();
-    if let Some(n) = opts.threads {
+/// Sets up `--threads N` worker threads (all cores when `None`).
+pub fn init_threads(threads: Option<usize>) -> Result<(), String> {
+    if let Some(n) = threads {
         if n == 0 {
             return Err("--threads 0: give at least 1 worker thread (or leave --threads out \
                         to use all cores)"
@@ -111,6 +110,13 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
             .build_global()
             .map_err(|e| format!("cannot start {n} threads: {e}"))?;
     }
+    Ok(())
+}
+
+/// Runs a scene end to end.
+pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
+    let started = Instant::now();
+    init_threads(opts.threads)?;
     catch_interrupts();
     let prepared = Prepared::load(&opts.scene)?;
     let mut run = Run::prepare(prepared)?;

@@ -26,7 +26,11 @@ pub struct Checked {
 
 /// Checks the scene at `path` as `run` would before solving.
 pub fn check(path: &Path) -> Result<Checked, SceneError> {
-    let prepared = Prepared::load(path)?;
+    check_prepared(Prepared::load(path)?)
+}
+
+/// [`check`] for a scene already prepared (the Python bindings' scene from arrays).
+pub fn check_prepared(prepared: Prepared) -> Result<Checked, SceneError> {
     crate::memory::require_fits(&prepared, crate::memory::available())?;
     let composed = compose(&prepared)?;
     let initial_gap = composed.check_initial_gap(&prepared)?;

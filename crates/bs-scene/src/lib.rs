@@ -19,6 +19,9 @@
 //!
 //! [`mesh_scene`] makes a scene folder from a labelmap (`brainshift mesh`, via bs-meshgen).
 //!
+//! [`sweep`] turns one scene into a parameter sweep: a folder of planned scenes, runs that
+//! any runner (a loop, a Slurm array, Dask workers) fills idempotently, and one table.
+//!
 //! [`calculix`] writes a scene as a CalculiX deck and reads the reference solutions back.
 //!
 //! Every error is a [`SceneError`] naming the file and the key, set, node or element.
@@ -50,6 +53,7 @@ pub mod scene;
 pub mod skull_contact;
 pub mod solve;
 pub mod study;
+pub mod sweep;
 pub mod verdict;
 pub mod verify;
 

@@ -49,6 +49,28 @@ impl Prepared {
             key: "[mesh] file".into(),
             message: e.to_string(),
         })?;
+        let skull = match &scene.contact {
+            None => None,
+            Some(c) => Some(bs_mesh::io::read_surface(&c.skull).map_err(|e| SceneError::Read {
+                scene: sp.clone(),
+                key: "[contact] skull".into(),
+                message: e.to_string(),
+            })?),
+        };
+        Prepared::from_parts(scene_path, scene, mesh, skull)
+    }
+
+    /// [`Prepared::from_scene`] with the mesh and the skull already in memory (the Python
+    /// bindings' scene from arrays): `skull` must be given exactly when the scene has a
+    /// `[contact]` table, whose `skull` path then only names it in messages. Everything
+    /// else is checked as for a scene file.
+    pub fn from_parts(
+        scene_path: &Path,
+        scene: Scene,
+        mesh: Mesh,
+        skull: Option<TriSurface>,
+    ) -> Result<Prepared, SceneError> {
+        let sp = scene_path.to_path_buf();
         let report = mesh.validate();
         if let Some(first) = report.first_error() {
             return Err(SceneError::Mesh {
@@ -68,20 +90,30 @@ impl Prepared {
         let element = element_of(&sp, &scene, &mesh)?;
         let region_of_element = regions(&sp, &scene, &mesh)?;
         let prescribed = resolve_boundaries(&sp, &scene, &mesh)?;
-        let skull = match &scene.contact {
-            None => None,
-            Some(c) => {
-                let s = bs_mesh::io::read_surface(&c.skull).map_err(|e| SceneError::Read {
-                    scene: sp.clone(),
-                    key: "[contact] skull".into(),
-                    message: e.to_string(),
-                })?;
+        let skull = match (&scene.contact, skull) {
+            (None, None) => None,
+            (Some(c), Some(s)) => {
                 s.require_closed_outward().map_err(|e| SceneError::Skull {
                     scene: sp.clone(),
                     skull: c.skull.clone(),
                     message: e.to_string(),
                 })?;
                 Some(s)
+            }
+            (Some(_), None) => {
+                return Err(SceneError::Unsupported {
+                    scene: sp,
+                    message: "the scene has a [contact] table but no skull surface was given"
+                        .into(),
+                });
+            }
+            (None, Some(_)) => {
+                return Err(SceneError::Unsupported {
+                    scene: sp,
+                    message: "a skull surface was given but the scene has no [contact] table; \
+                              add one to use it"
+                        .into(),
+                });
             }
         };
         let n_constrained = prescribed.iter().filter(|p| p.iter().any(Option::is_some)).count();

@@ -409,6 +409,15 @@ impl Scene {
             // toml's message names the line, column and key; keep it whole.
             e.to_string().trim_end().to_string()
         })?;
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// Checks what the types cannot (ranges, exclusive keys): [`Scene::parse`] does it for
+    /// scene text; front ends that build a scene otherwise (the Python bindings' scene from
+    /// arrays) call it themselves.
+    pub fn validate(&self) -> Result<(), String> {
+        let scene = self;
         if scene.regions.is_empty() {
             return Err(
                 "no [[region]]: give at least one, e.g. elset = \"*\" with a material".into()
@@ -479,7 +488,7 @@ impl Scene {
         if scene.solver.ramp_steps == 0 {
             return Err("[solver] ramp_steps must be at least 1 (default 200)".into());
         }
-        Ok(scene)
+        Ok(())
     }
 }
 

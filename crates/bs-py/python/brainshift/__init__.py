@@ -1,0 +1,35 @@
+"""brainshift: brain shift for image-guided neurosurgery, from Python.
+
+The native extension (``brainshift._native``, Rust) does the work through the same
+library calls as the ``brainshift`` command, so a scene run here gives bit-identical
+displacements and the same error messages.
+
+>>> import brainshift
+>>> scene = brainshift.Scene.from_toml("fixtures/cube/uniaxial-t4.toml")
+>>> result = scene.run()
+>>> result.displacements.shape            # (n, 3) float64, rows in result.node_ids order
+>>> result.report["max_displacement"]     # the keys of report.json
+>>> result.write("out")                   # result.vtu, displacements.csv, report.json
+
+Sweeps: :mod:`brainshift.sweep` (plan, run on Dask, collect, Slurm script).
+"""
+
+from ._native import (
+    BrainshiftError,
+    Result,
+    Scene,
+    __version__,
+    gap,
+    read_mesh,
+)
+from . import sweep
+
+__all__ = [
+    "BrainshiftError",
+    "Result",
+    "Scene",
+    "__version__",
+    "gap",
+    "read_mesh",
+    "sweep",
+]
