@@ -3,6 +3,7 @@
 //! `bs-mesh` (`inspect`).
 
 pub mod check;
+pub mod demo;
 pub mod gap;
 pub mod inspect;
 pub mod mesh;

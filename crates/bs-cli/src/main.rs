@@ -1,6 +1,6 @@
 //! `brainshift`: brain shift computation for image-guided neurosurgery.
 
-use bs_cli::{check, gap, inspect, mesh, run, sweep};
+use bs_cli::{check, demo, gap, inspect, mesh, run, sweep};
 use bs_scene::scene;
 
 use std::path::PathBuf;
@@ -59,6 +59,10 @@ enum Command {
         /// Output folder (created if missing).
         #[arg(long, default_value = "out")]
         out: PathBuf,
+        /// Start from the image: mesh the bundled MNI152 brain mask (NIfTI) into OUT/mesh/
+        /// with `brainshift mesh`, then solve that scene.
+        #[arg(long)]
+        from_image: bool,
     },
     /// Builds a model from a segmentation: a quality tetrahedral (or hexahedral) brain
     /// mesh of a labelmap with an element set per region, a skull cavity around it and a
@@ -90,6 +94,10 @@ enum Command {
         /// Use the inner boundary of these (skull) labels as the cavity instead of an offset.
         #[arg(long)]
         cavity: Option<String>,
+        /// Write scene.toml with its craniotomy load active (the CRANIOTOMY surface nodes
+        /// moved 8 mm along -z) instead of as a comment to edit, so it runs as written.
+        #[arg(long)]
+        craniotomy: bool,
     },
     /// Brain–skull gap of every boundary node of a mesh (or of points): one CSV row per node
     /// `id,signed_distance,closest_x,closest_y,closest_z,outside` (positive = inside the
@@ -192,24 +200,28 @@ fn main() -> ExitCode {
             threads,
             quiet,
         }),
-        Command::Demo { out } => run::run(&run::RunOptions {
-            scene: run::default_scene(),
+        Command::Demo { out, from_image } => demo::run(&out, from_image),
+        Command::Mesh {
+            labels,
             out,
-            threads: None,
-            quiet: false,
+            brain,
+            regions,
+            size,
+            element,
+            skull_offset,
+            cavity,
+            craniotomy,
+        } => mesh::run(&mesh::MeshOptions {
+            labels,
+            out,
+            brain,
+            regions,
+            size,
+            element,
+            skull_offset,
+            cavity,
+            craniotomy,
         }),
-        Command::Mesh { labels, out, brain, regions, size, element, skull_offset, cavity } => {
-            mesh::run(&mesh::MeshOptions {
-                labels,
-                out,
-                brain,
-                regions,
-                size,
-                element,
-                skull_offset,
-                cavity,
-            })
-        }
         Command::Gap { skull, mesh, points, algorithm, out } => {
             let query = match (mesh, points) {
                 (Some(m), _) => Ok(gap::Query::Mesh(m)),

@@ -25,6 +25,8 @@ pub struct MeshOptions {
     pub skull_offset: f64,
     /// `--cavity LABELS`.
     pub cavity: Option<String>,
+    /// `--craniotomy`: the scene's craniotomy load active instead of commented.
+    pub craniotomy: bool,
 }
 
 /// Parses a comma-separated list of label values (`"1,2,3"`).
@@ -73,7 +75,7 @@ pub fn params(o: &MeshOptions) -> Result<MeshParams, String> {
 /// Runs the command.
 pub fn run(o: &MeshOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
     let p = params(o)?;
-    let done = mesh_to_scene(&o.labels, &o.out, &p)?;
+    let done = mesh_to_scene(&o.labels, &o.out, &p, o.craniotomy)?;
     let f = &done.files;
     crate::emit(&format!(
         "{}\nwrote {}, {}, {}, {}\n",

@@ -51,17 +51,19 @@ pub fn default_material(set: &str) -> (f64, f64, &'static str) {
 }
 
 /// Reads the labelmap `labels` (NIfTI), meshes it and writes the scene folder `out`
-/// (created if needed).
+/// (created if needed). With `craniotomy` the scene's craniotomy load (CRANIOTOMY moved
+/// 8 mm along −z) is active, so the scene runs as written; otherwise it is a comment.
 pub fn mesh_to_scene(
     labels: &Path,
     out: &Path,
     params: &MeshParams,
+    craniotomy: bool,
 ) -> Result<MeshedScene, SceneError> {
     let volume = bs_image::nifti::read_labels(labels)
         .map_err(|e| SceneError::Labelmap { file: labels.to_path_buf(), message: e.to_string() })?;
     let meshed = bs_meshgen::mesh_labelmap(&volume, params)
         .map_err(|e| SceneError::Labelmap { file: labels.to_path_buf(), message: e.to_string() })?;
-    let files = write_scene_folder(out, &meshed, params, labels, Space::Ras)?;
+    let files = write_scene_folder(out, &meshed, params, labels, Space::Ras, craniotomy)?;
     Ok(MeshedScene { meshed, files })
 }
 
@@ -72,6 +74,7 @@ pub fn write_scene_folder(
     params: &MeshParams,
     source: &Path,
     space: Space,
+    craniotomy: bool,
 ) -> Result<SceneFiles, SceneError> {
     let werr = |path: &Path, e: &dyn std::fmt::Display| SceneError::Write {
         path: path.to_path_buf(),
@@ -94,7 +97,7 @@ pub fn write_scene_folder(
     bs_mesh::io::write_mesh(&files.brain_inp, &meshed.mesh, &Fields::default())
         .map_err(|e| werr(&files.brain_inp, &e))?;
     bs_mesh::io::write_surface(&files.skull, &meshed.skull).map_err(|e| werr(&files.skull, &e))?;
-    let text = scene_text(meshed, params, source, space, false);
+    let text = scene_text(meshed, params, source, space, craniotomy);
     bs_mesh::io::write_atomic(&files.scene, |w| w.write_all(text.as_bytes()))
         .map_err(|e| werr(&files.scene, &e))?;
     Ok(files)
@@ -222,7 +225,7 @@ mod tests {
             ..MeshParams::default()
         };
         let out = dir.join("model");
-        let done = mesh_to_scene(&labels, &out, &params).unwrap();
+        let done = mesh_to_scene(&labels, &out, &params, false).unwrap();
         for f in
             [&done.files.brain_vtu, &done.files.brain_inp, &done.files.skull, &done.files.scene]
         {
@@ -242,7 +245,7 @@ mod tests {
         let (min_gap, _) = checked.initial_gap.unwrap();
         assert!(min_gap > 1.5, "initial gap {min_gap}");
         // A labelmap that cannot be read names the file.
-        let e = mesh_to_scene(&dir.join("missing.nii"), &out, &params).unwrap_err();
+        let e = mesh_to_scene(&dir.join("missing.nii"), &out, &params, false).unwrap_err();
         assert!(e.to_string().contains("missing.nii"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
