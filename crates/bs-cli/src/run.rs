@@ -182,6 +182,15 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// `demo`'s registration outputs: the bundled MNI152 T1 template warped by the result in
+/// `out` (out/warped_t1.nii.gz) and the displacement field on its grid (out/field.nii.gz).
+pub fn demo_images(out: &Path) -> Result<ExitCode, Box<dyn std::error::Error>> {
+    let t1 = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/mni152/t1.nii.gz");
+    crate::warp::run(&t1, out, &out.join("warped_t1.nii.gz"), false)?;
+    crate::field::run(&t1, out, &out.join("field.nii.gz"))?;
+    Ok(ExitCode::SUCCESS)
+}
+
 /// The bundled default scene (the real-anatomy fixture) for `demo` and a bare `run`.
 pub fn default_scene() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/mni152/scene.toml")

@@ -19,6 +19,8 @@
 //! * [`io`]: readers and writers for Abaqus `.inp`, Gmsh `.msh` (2.2 and 4.1, ASCII or binary), VTK
 //!   legacy, VTU, STL, OBJ and OFF. Every parse error names the file and line (or byte
 //!   offset) and what was expected.
+//! * [`tps`]: thin-plate spline interpolation of a vector field from landmarks (loads from
+//!   intra-operative landmark pairs).
 //! * [`structured`]: structured box meshes (hexahedra or Kuhn tetrahedra, optionally
 //!   jittered) and [`rng`], the workspace's one seeded generator for tests and benchmarks.
 //!
@@ -50,6 +52,7 @@ pub mod rng;
 pub mod self_intersection;
 pub mod structured;
 mod surface;
+pub mod tps;
 mod validate;
 
 pub use boundary::BoundarySurface;

@@ -121,6 +121,23 @@ pub enum SceneError {
     /// The solver converged but the result failed a check independent of it.
     #[error("{0}")]
     Verify(#[from] crate::verify::VerifyError),
+    /// An image cannot be read or does not fit the result (wrong dimension, a mesh outside
+    /// its extent: wrong frame).
+    #[error("{}: {message}", file.display())]
+    Image {
+        /// The image file.
+        file: PathBuf,
+        /// What is wrong, with both frames and extents when they disagree, and the fix.
+        message: String,
+    },
+    /// A result directory cannot be read back (missing files, no displacement field).
+    #[error("{}: {message}", dir.display())]
+    Result {
+        /// The result directory.
+        dir: PathBuf,
+        /// What is missing or wrong and how to fix it.
+        message: String,
+    },
     /// An output file could not be written.
     #[error("{}: {message}", path.display())]
     Write {
@@ -154,6 +171,8 @@ impl SceneError {
             SceneError::Memory { .. } => "Memory",
             SceneError::Solve(e) => e.kind(),
             SceneError::Verify(e) => e.kind(),
+            SceneError::Image { .. } => "Image",
+            SceneError::Result { .. } => "Result",
             SceneError::Write { .. } => "Write",
         }
     }

@@ -12,6 +12,9 @@
 //! * [`solve`]: the solver a scene asks for, prepared once and driven with an observer;
 //! * [`verify`]: the result checked independently of the solver (contact, J, equilibrium);
 //! * [`run`] and [`output`]: the verified run of a scene and its three files;
+//! * [`registration`]: a run's result read back and applied to images (the pre-operative
+//!   image warped into the intra-operative configuration, the displacement field for ITK
+//!   and 3D Slicer);
 //! * [`check`]: everything `run` does before solving, with [`memory`] and [`advice`];
 //! * [`study`]: one scene solved with variations (what validation, charts and stability
 //!   maps measure), [`verdict`]: how such a run ended, and [`findings`]: the
@@ -42,6 +45,7 @@ pub mod gap;
 pub mod memory;
 pub mod output;
 pub mod prepare;
+pub mod registration;
 pub mod run;
 pub mod scene;
 pub mod skull_contact;

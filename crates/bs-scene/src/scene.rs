@@ -3,6 +3,7 @@
 //!
 //! ```toml
 //! units = "mm"
+//! space = "RAS"            # or "LPS"; the frame of the mesh (default RAS)
 //! [mesh]
 //! file = "brain.inp"
 //! element = "t4anp"
@@ -56,6 +57,28 @@ impl Units {
         match self {
             Units::Mm => "mm",
             Units::M => "m",
+        }
+    }
+}
+
+/// The anatomical frame of the mesh coordinates (and of every displacement and output).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+pub enum SpaceName {
+    /// Right–Anterior–Superior: NIfTI's world frame and 3D Slicer's (the default).
+    #[default]
+    #[serde(rename = "RAS")]
+    Ras,
+    /// Left–Posterior–Superior: DICOM's and ITK's frame.
+    #[serde(rename = "LPS")]
+    Lps,
+}
+
+impl SpaceName {
+    /// The frame.
+    pub fn space(self) -> bs_image::Space {
+        match self {
+            SpaceName::Ras => bs_image::Space::Ras,
+            SpaceName::Lps => bs_image::Space::Lps,
         }
     }
 }
@@ -369,6 +392,9 @@ pub struct MeshSection {
 pub struct Scene {
     /// Length unit of the mesh files.
     pub units: Units,
+    /// Anatomical frame of the mesh files: `"RAS"` (default) or `"LPS"`.
+    #[serde(default)]
+    pub space: SpaceName,
     /// The brain mesh.
     pub mesh: MeshSection,
     /// Material regions.

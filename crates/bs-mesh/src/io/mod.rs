@@ -172,6 +172,10 @@ pub struct Fields {
     pub point: Vec<Field>,
     /// Per-element arrays.
     pub cell: Vec<Field>,
+    /// Named strings about the whole dataset (VTU `FieldData` String arrays, e.g. `SPACE`
+    /// = `RAS`, the anatomical frame of the coordinates). Written and read by the VTU format
+    /// only.
+    pub field_data: Vec<(String, String)>,
 }
 
 /// What a file holds.

@@ -491,6 +491,22 @@ pub fn write(w: &mut dyn Write, mesh: &Mesh, fields: &Fields, enc: Encoding) -> 
     )?;
     writeln!(w, "<!-- written by brainshift -->")?;
     writeln!(w, "<UnstructuredGrid>")?;
+    if !fields.field_data.is_empty() {
+        // VTK's String arrays: the bytes as integers, each string ended by a 0.
+        writeln!(w, "<FieldData>")?;
+        for (name, value) in &fields.field_data {
+            let bytes: Vec<String> =
+                value.bytes().chain([0]).map(|b| b.to_string()).collect();
+            writeln!(
+                w,
+                "<DataArray type=\"String\" Name=\"{}\" NumberOfTuples=\"1\" \
+                 format=\"ascii\">\n{}\n</DataArray>",
+                xml_escape(name),
+                bytes.join(" ")
+            )?;
+        }
+        writeln!(w, "</FieldData>")?;
+    }
     writeln!(w, "<Piece NumberOfPoints=\"{nn}\" NumberOfCells=\"{ne}\">")?;
     for (tag, list) in
         [("PointData", &point), ("CellData", &cell), ("Points", &points), ("Cells", &cells)]
@@ -866,8 +882,24 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
     let mut points = None;
     let mut cells = Cells { loc: Some(Location::Byte(piece_pos)), ..Default::default() };
     let (mut pdata, mut cdata) = (Vec::new(), Vec::new());
+    let mut field_data = Vec::new();
     for a in arrays {
         let ty = a.attrs.get("type").cloned().unwrap_or_default();
+        if a.section == "FieldData" {
+            // Dataset-level strings (e.g. SPACE) in ASCII; other field data is not used.
+            let ascii = a.attrs.get("format").is_none_or(|f| f == "ascii");
+            if ty == "String" && ascii {
+                let text = String::from_utf8_lossy(&a.text);
+                let bytes: Vec<u8> = text
+                    .split_ascii_whitespace()
+                    .map_while(|b| b.parse::<u8>().ok())
+                    .take_while(|&b| b != 0)
+                    .collect();
+                let name = a.attrs.get("Name").cloned().unwrap_or_default();
+                field_data.push((name, String::from_utf8_lossy(&bytes).into_owned()));
+            }
+            continue;
+        }
         let fail = |m: String| {
             err(a.pos, format!("DataArray '{}': {m}", a.attrs.get("Name").map_or("", |s| s)))
         };
@@ -957,7 +989,9 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
             ),
         ));
     }
-    assemble(file, npoints, &points, &cells, pdata, cdata)
+    let (mesh, mut fields) = assemble(file, npoints, &points, &cells, pdata, cdata)?;
+    fields.field_data = field_data;
+    Ok((mesh, fields))
 }
 
 fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
