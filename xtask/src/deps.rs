@@ -15,7 +15,7 @@ pub const ALLOWED: &[(&str, &[&str])] = &[
     ("bs-image", &[]),
     ("bs-contact", &["bs-mesh"]),
     ("bs-dr", &["bs-mesh", "bs-material"]),
-    ("bs-scene", &["bs-mesh", "bs-material", "bs-dr", "bs-contact"]),
+    ("bs-scene", &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-image"]),
     ("bs-cli", &["bs-mesh", "bs-dr", "bs-contact", "bs-scene"]),
     ("xtask", &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-scene"]),
 ];
