@@ -357,8 +357,8 @@ mod tests {
             let (i, j, k) = (n % 24, (n / 24) % 22, n / (24 * 22));
             let p = to_world.transform_point(&Point3::new(i as f64, j as f64, k as f64));
             // The lowest tetrahedron containing p (within the tolerance), by brute force.
-            let reference = (0..tets.len())
-                .find(|&t| bary(t, &p).iter().all(|&w| w >= -INSIDE_TOLERANCE));
+            let reference =
+                (0..tets.len()).find(|&t| bary(t, &p).iter().all(|&w| w >= -INSIDE_TOLERANCE));
             match loc.locate(n) {
                 Some((t, w)) => {
                     inside += 1;
@@ -382,8 +382,7 @@ mod tests {
             .iter()
             .map(|t| {
                 let p = t.map(|n| hexes.nodes[n]);
-                Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]).determinant()
-                    / 6.0
+                Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]).determinant() / 6.0
             })
             .inspect(|&v| assert!(v > 0.0))
             .sum();
@@ -397,8 +396,8 @@ mod tests {
         let e = LatticeLocation::new(&nodes, &[[0, 1, 2, 3]], &[42], [2, 2, 2], &identity())
             .unwrap_err();
         assert_eq!(e, LocateError::Degenerate { id: 42 });
-        let nodes = [[0., 0., 0.], [1., 0., 0.], [0., f64::NAN, 0.], [0., 0., 1.]]
-            .map(Point3::from);
+        let nodes =
+            [[0., 0., 0.], [1., 0., 0.], [0., f64::NAN, 0.], [0., 0., 1.]].map(Point3::from);
         let e = LatticeLocation::new(&nodes, &[[0, 1, 2, 3]], &[7], [2, 2, 2], &identity())
             .unwrap_err();
         assert_eq!(e, LocateError::NonFinite { id: 7 });

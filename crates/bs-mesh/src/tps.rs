@@ -118,7 +118,9 @@ mod tests {
     fn points() -> Vec<Point3<f64>> {
         let mut rng = crate::rng::SplitMix64::new(11);
         (0..25)
-            .map(|_| Point3::new(rng.range(-50.0, 50.0), rng.range(-40.0, 60.0), rng.range(-30.0, 30.0)))
+            .map(|_| {
+                Point3::new(rng.range(-50.0, 50.0), rng.range(-40.0, 60.0), rng.range(-30.0, 30.0))
+            })
             .collect()
     }
 

@@ -547,10 +547,18 @@ fn vtk_errors_name_the_line() {
 #[test]
 fn writers_reject_inconsistent_input() {
     let mesh = Mesh::new(vec![Point3::origin(); 4], vec![Element::tet4([0, 1, 2, 3])]);
-    let fields = Fields { point: vec![Field::new("u", 3, vec![0.0; 11])], cell: vec![], ..Default::default() };
+    let fields = Fields {
+        point: vec![Field::new("u", 3, vec![0.0; 11])],
+        cell: vec![],
+        ..Default::default()
+    };
     let e = vtu::write(&mut Vec::new(), &mesh, &fields, vtu::Encoding::Appended).unwrap_err();
     assert!(e.to_string().contains("point field 'u' has 11 values with 3 components"), "{e}");
-    let fields = Fields { point: vec![Field::new("node_id", 1, vec![0.0; 4])], cell: vec![], ..Default::default() };
+    let fields = Fields {
+        point: vec![Field::new("node_id", 1, vec![0.0; 4])],
+        cell: vec![],
+        ..Default::default()
+    };
     assert!(vtk::write(&mut Vec::new(), &mesh, &fields).is_err());
     let bad = Mesh::new(vec![Point3::origin(); 3], vec![Element::tet4([0, 1, 2, 3])]);
     assert!(vtu::write(&mut Vec::new(), &bad, &Fields::default(), vtu::Encoding::Inline).is_err());

@@ -4,7 +4,8 @@
 //! The data flow, one module per step:
 //!
 //! * [`scene`]: the scene file (TOML) and its keys — the contract users write;
-//! * [`prepare`] (with [`boundary`]): files read, sets resolved, everything checked that
+//! * [`prepare`] (with [`boundary`] and `loads`, displacements from an intra-operative
+//!   surface or landmark pairs): files read, sets resolved, everything checked that
 //!   can be checked without computing — a [`Prepared`] scene;
 //! * [`compose`] (with [`skull_contact`]): model, loads and contact handler, the only
 //!   place that knows both bs-dr and bs-contact;
@@ -42,6 +43,7 @@ pub mod compose;
 mod error;
 pub mod findings;
 pub mod gap;
+mod loads;
 pub mod memory;
 pub mod output;
 pub mod prepare;

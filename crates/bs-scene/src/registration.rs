@@ -67,7 +67,10 @@ impl RunResult {
         let mut notes = Vec::new();
         let space = match json.get("space").and_then(|s| s.as_str()) {
             Some(s) => Space::from_name(s).ok_or_else(|| {
-                err(format!("{}: \"space\" is \"{s}\"; expected \"RAS\" or \"LPS\"", report.display()))
+                err(format!(
+                    "{}: \"space\" is \"{s}\"; expected \"RAS\" or \"LPS\"",
+                    report.display()
+                ))
             })?,
             None => {
                 notes.push(format!(

@@ -87,7 +87,10 @@ fn check_affine(a: Matrix3<f64>, b: Vector3<f64>, tets: bool) {
         };
         match map.reference_point(n) {
             Some(x) => {
-                assert!(in_box(-1e-6), "voxel {n} at {y} mapped but its preimage {x_ref} is outside");
+                assert!(
+                    in_box(-1e-6),
+                    "voxel {n} at {y} mapped but its preimage {x_ref} is outside"
+                );
                 inside += 1;
                 // Exact for affine maps: rounding of a 3×3 solve on ~50 mm coordinates.
                 assert!((x - x_ref).norm() < 1e-9, "voxel {n}: {x} vs {x_ref}");
@@ -169,7 +172,11 @@ fn the_field_at_a_deformed_node_is_minus_its_displacement() {
 fn write_rundir(dir: &Path, mesh: &Mesh, u: &[Vector3<f64>], space: &str, units: &str) {
     std::fs::create_dir_all(dir).unwrap();
     let fields = Fields {
-        point: vec![Field::new("displacement", 3, u.iter().flat_map(|d| [d.x, d.y, d.z]).collect())],
+        point: vec![Field::new(
+            "displacement",
+            3,
+            u.iter().flat_map(|d| [d.x, d.y, d.z]).collect(),
+        )],
         ..Default::default()
     };
     bs_mesh::io::write_mesh(&dir.join("result.vtu"), mesh, &fields).unwrap();
@@ -237,7 +244,9 @@ fn labels_are_warped_by_nearest_voxel() {
     // them exactly.
     let labels = Volume {
         grid: g.clone(),
-        data: (0..g.len()).map(|n| 1 + (voxel_world(&g, n).x / 8.0).floor().max(0.0) as u32).collect(),
+        data: (0..g.len())
+            .map(|n| 1 + (voxel_world(&g, n).x / 8.0).floor().max(0.0) as u32)
+            .collect(),
     };
     let path = d.join("labels.nii.gz");
     bs_image::nifti::write_labels(&path, &labels, None).unwrap();
@@ -361,7 +370,9 @@ fn simpleitk_applying_the_exported_fields_gives_the_warp() {
         assert!(mad <= 0.01 * range, "{name}: mean |difference| {mad} vs range {range}");
         let everywhere = compare(&ours.data, &theirs.data, &vec![true; mask.len()]);
         assert!(everywhere <= 0.01 * range, "{name}: outside the brain too ({everywhere})");
-        eprintln!("{name}: mean |ours − SimpleITK| {mad:.3e} inside, range {range}, warp moved {moved:.3}");
+        eprintln!(
+            "{name}: mean |ours − SimpleITK| {mad:.3e} inside, range {range}, warp moved {moved:.3}"
+        );
     }
     let _ = std::fs::remove_dir_all(&d);
 }

@@ -495,8 +495,7 @@ pub fn write(w: &mut dyn Write, mesh: &Mesh, fields: &Fields, enc: Encoding) -> 
         // VTK's String arrays: the bytes as integers, each string ended by a 0.
         writeln!(w, "<FieldData>")?;
         for (name, value) in &fields.field_data {
-            let bytes: Vec<String> =
-                value.bytes().chain([0]).map(|b| b.to_string()).collect();
+            let bytes: Vec<String> = value.bytes().chain([0]).map(|b| b.to_string()).collect();
             writeln!(
                 w,
                 "<DataArray type=\"String\" Name=\"{}\" NumberOfTuples=\"1\" \
