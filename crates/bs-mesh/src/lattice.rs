@@ -165,8 +165,8 @@ impl LatticeLocation {
                 let r = &ranges[t];
                 for j in r[1].0..=r[1].1 {
                     let row = &mut slice[j * nx..(j + 1) * nx];
-                    for i in r[0].0..=r[0].1 {
-                        if row[i] != OUTSIDE {
+                    for (i, cell) in row.iter_mut().enumerate().take(r[0].1 + 1).skip(r[0].0) {
+                        if *cell != OUTSIDE {
                             continue;
                         }
                         let d = nalgebra::Vector3::new(i as f64 - q0.x, j as f64 - q0.y, z - q0.z);
@@ -177,7 +177,7 @@ impl LatticeLocation {
                             && l.y >= -INSIDE_TOLERANCE
                             && l.z >= -INSIDE_TOLERANCE
                         {
-                            row[i] = t as u32;
+                            *cell = t as u32;
                         }
                     }
                 }

@@ -85,12 +85,11 @@ pub(crate) fn surface_displacements(
     Ok(moves)
 }
 
+/// Landmarks: pre-operative positions and their displacements.
+type Landmarks = (Vec<Point3<f64>>, Vec<Vector3<f64>>);
+
 /// Landmark pairs read from a CSV with header `x,y,z,x2,y2,z2`.
-pub(crate) fn read_landmarks(
-    sp: &Path,
-    key: &str,
-    file: &Path,
-) -> Result<(Vec<Point3<f64>>, Vec<Vector3<f64>>), SceneError> {
+pub(crate) fn read_landmarks(sp: &Path, key: &str, file: &Path) -> Result<Landmarks, SceneError> {
     let read = |message: String| SceneError::Read {
         scene: sp.to_path_buf(),
         key: key.to_string(),
