@@ -17,7 +17,7 @@ pub const ALLOWED: &[(&str, &[&str])] = &[
     ("bs-dr", &["bs-mesh", "bs-material"]),
     ("bs-scene", &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-image"]),
     ("bs-cli", &["bs-mesh", "bs-dr", "bs-contact", "bs-scene"]),
-    ("xtask", &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-scene"]),
+    ("xtask", &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-scene", "bs-image"]),
 ];
 
 /// Extra edges allowed for dev-dependencies only (tests checking a front end against a

@@ -7,6 +7,8 @@
 //!   wall time.
 //! * `bench contact`: the paper's contact benchmark for every handler, table written to
 //!   `docs/contact-bench.md`.
+//! * `bench warp`: the registration outputs (inverse map, warp, field) on the MNI152 T1
+//!   template with the demo result, against reading the image and a naive per-voxel loop.
 //! * `bench e2e`: every contact fixture solved by DR and by Newton–Krylov in child
 //!   processes: preparation and solve times, iterations, accuracy against CalculiX, peak
 //!   memory, speed-up (table in `docs/benchmarks.md`).
@@ -27,6 +29,7 @@
 mod bench_contact;
 mod bench_e2e;
 mod bench_solver;
+mod bench_warp;
 mod chart;
 mod deps;
 mod fuzz;
@@ -52,6 +55,8 @@ Commands:
                   composing crates for module cycles
   bench solver    kernel ns/element-step (1 vs 2 threads), DR vs Newton (release)
   bench contact   contact handlers on the paper's benchmark (writes docs/contact-bench.md)
+  bench warp      warp and field of the MNI152 T1 template with the demo result: seconds,
+                  against reading the image and a naive per-voxel TetLocator loop (release)
   bench e2e       [--case NAME] [--repeat N] every contact fixture solved by DR (baseline) and
                   Newton-Krylov (default): preparation, solve, iterations, accuracy against
                   CalculiX, peak memory, speed-up (writes docs/benchmarks.md)
@@ -135,6 +140,7 @@ fn main() -> ExitCode {
             Some("solver") => report(bench_solver::run(), "bench solver"),
             Some("contact") => report(bench_contact::main(), "bench contact"),
             Some("e2e") => report(bench_e2e::main(&args[2..]), "bench e2e"),
+            Some("warp") => report(bench_warp::main(), "bench warp"),
             _ => {
                 eprintln!("bench what? `cargo xtask bench solver`, `bench contact` or `bench e2e`");
                 ExitCode::from(2)
