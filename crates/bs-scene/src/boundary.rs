@@ -56,17 +56,22 @@ pub fn resolve_boundaries(sp: &Path, scene: &Scene, mesh: &Mesh) -> Result<Presc
             continue;
         }
         let (name, nodes) = select_nodes(sp, scene, mesh, i, b)?;
+        let key = if b.nset.is_some() { " nset" } else { "" };
         let err = |message: String| SceneError::Set {
             scene: sp.to_path_buf(),
-            key: format!("[[boundary]] #{}", i + 1),
+            key: format!("[[boundary]] #{}{key}", i + 1),
             set: name.clone(),
             message,
         };
         if nodes.is_empty() {
+            let what = if b.nset.is_some() {
+                "the node set selects no node of"
+            } else {
+                "the selection holds no boundary node of"
+            };
             return Err(err(format!(
-                "the selection holds no node of {} (an empty set, a sphere or mask away from \
-                 the brain's surface, or ids not in the mesh); the boundary condition would \
-                 prescribe nothing",
+                "{what} {} (empty, its ids not in the mesh, or a sphere or mask away from the \
+                 brain's surface); the boundary condition would prescribe nothing",
                 scene.mesh.file.display()
             )));
         }

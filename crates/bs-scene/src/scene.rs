@@ -509,21 +509,27 @@ impl Scene {
             ];
             if given.iter().filter(|&&g| g).count() != 1 {
                 return Err(format!(
-                    "[[boundary]] #{}: give exactly one of fix, displacement, displacement_file, \
-                     surface or landmarks",
+                    "[[boundary]] #{}: give exactly one of fix, displacement or displacement_file \
+                     (or an intra-operative load: surface or landmarks)",
                     i + 1
                 ));
             }
             let selections = [b.nset.is_some(), b.sphere.is_some(), b.mask.is_some()];
             let selected = selections.iter().filter(|&&g| g).count();
-            if b.displacement_file.is_some() && selected > 0 {
+            if b.displacement_file.is_some() && (b.sphere.is_some() || b.mask.is_some()) {
                 return Err(format!(
-                    "[[boundary]] #{}: displacement_file names its nodes; drop nset, sphere or \
-                     mask",
+                    "[[boundary]] #{}: displacement_file names its nodes; drop sphere or mask",
                     i + 1
                 ));
             }
-            if b.displacement_file.is_none() && selected != 1 {
+            if b.displacement_file.is_none() && selected == 0 {
+                return Err(format!(
+                    "[[boundary]] #{}: nset is required with fix or displacement (or select \
+                     the nodes with sphere or mask)",
+                    i + 1
+                ));
+            }
+            if selected > 1 {
                 return Err(format!(
                     "[[boundary]] #{}: select the nodes with exactly one of nset, sphere or mask",
                     i + 1

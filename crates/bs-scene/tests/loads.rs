@@ -189,13 +189,19 @@ fn a_mask_selects_the_boundary_nodes_on_its_non_zero_voxels() {
     let empty = bs_image::Volume { grid: mask.grid.clone(), data: vec![0; mask.data.len()] };
     bs_image::nifti::write_labels(&d.join("craniotomy.nii.gz"), &empty, None).unwrap();
     let e = Prepared::load(&path).unwrap_err();
-    assert!(matches!(e, SceneError::Set { .. }) && e.to_string().contains("holds no node"), "{e}");
+    assert!(
+        matches!(e, SceneError::Set { .. }) && e.to_string().contains("holds no boundary node"),
+        "{e}"
+    );
     let (path, _) = scene(
         &d,
         "[[boundary]]\nsphere = { centre = [200.0, 0.0, 0.0], radius = 5.0 }\ndisplacement = { z = -2.0 }\n",
     );
     let e = Prepared::load(&path).unwrap_err().to_string();
-    assert!(e.contains("sphere centre [200.0, 0.0, 0.0]") && e.contains("holds no node"), "{e}");
+    assert!(
+        e.contains("sphere centre [200.0, 0.0, 0.0]") && e.contains("holds no boundary node"),
+        "{e}"
+    );
     let _ = std::fs::remove_dir_all(&d);
 }
 
