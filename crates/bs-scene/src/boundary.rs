@@ -16,6 +16,17 @@ pub type Prescribed = Vec<[Option<f64>; 3]>;
 
 /// Resolves every `[[boundary]]` of `scene` on `mesh`.
 pub fn resolve_boundaries(sp: &Path, scene: &Scene, mesh: &Mesh) -> Result<Prescribed, SceneError> {
+    resolve_boundaries_with_notes(sp, scene, mesh).map(|(p, _)| p)
+}
+
+/// [`resolve_boundaries`] with one line per intra-operative load or set-free selection
+/// (what `check` reports: the file or selection, how many nodes, the largest displacement).
+pub fn resolve_boundaries_with_notes(
+    sp: &Path,
+    scene: &Scene,
+    mesh: &Mesh,
+) -> Result<(Prescribed, Vec<String>), SceneError> {
+    let mut notes = Vec::new();
     let mut prescribed = vec![[None; 3]; mesh.nodes.len()];
     let mut set = |node: usize, c: usize, v: f64, source: &str| -> Result<(), SceneError> {
         match prescribed[node][c] {
@@ -76,9 +87,20 @@ pub fn resolve_boundaries(sp: &Path, scene: &Scene, mesh: &Mesh) -> Result<Presc
             )));
         }
         let source = format!("[[boundary]] #{}", i + 1);
+        if b.nset.is_none() && b.surface.is_none() && b.landmarks.is_none() {
+            notes.push(format!("[[boundary]] #{} {name}: {} boundary nodes", i + 1, nodes.len()));
+        }
         if let Some(file) = &b.surface {
             let limit = b.max_distance.unwrap_or(mm_in_mesh_units(scene));
             let moves = crate::loads::surface_displacements(sp, i, file, mesh, &nodes, limit)?;
+            notes.push(format!(
+                "[[boundary]] #{} surface {} on {name}: {} nodes moved to their closest points, \
+                 largest move {:.4} (max_distance {limit})",
+                i + 1,
+                file.display(),
+                nodes.len(),
+                moves.iter().map(|m| m.norm()).fold(0.0, f64::max)
+            ));
             for (&n, d) in nodes.iter().zip(moves) {
                 for c in 0..3 {
                     set(n, c, d[c], &source)?;
@@ -89,6 +111,14 @@ pub fn resolve_boundaries(sp: &Path, scene: &Scene, mesh: &Mesh) -> Result<Presc
         if let Some(file) = &b.landmarks {
             let limit = b.max_extrapolation.unwrap_or(mm_in_mesh_units(scene));
             let moves = crate::loads::landmark_displacements(sp, i, file, mesh, &nodes, limit)?;
+            notes.push(format!(
+                "[[boundary]] #{} landmarks {} on {name}: {} nodes, largest displacement {:.4} \
+                 (thin-plate spline; max_extrapolation {limit})",
+                i + 1,
+                file.display(),
+                nodes.len(),
+                moves.iter().map(|m| m.norm()).fold(0.0, f64::max)
+            ));
             for (&n, d) in nodes.iter().zip(moves) {
                 for c in 0..3 {
                     set(n, c, d[c], &source)?;
@@ -112,7 +142,7 @@ pub fn resolve_boundaries(sp: &Path, scene: &Scene, mesh: &Mesh) -> Result<Presc
             }
         }
     }
-    Ok(prescribed)
+    Ok((prescribed, notes))
 }
 
 /// [`crate::scene::DEFAULT_MAX_DISTANCE_MM`] in the scene's length unit.

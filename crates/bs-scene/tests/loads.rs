@@ -82,6 +82,12 @@ fn an_intra_operative_surface_moves_the_selected_nodes_to_their_closest_points()
     let p = Prepared::load(&path).unwrap();
     let selected = in_sphere(&mesh, Point3::new(20.0, 20.0, 40.0), 15.0);
     assert_eq!(selected.len(), 9, "the 3×3 top nodes within 15 mm of the top centre");
+    // What `check` prints about it.
+    assert!(
+        p.loads.iter().any(|l| l.contains("intraop.off") && l.contains("9 nodes moved")),
+        "{:?}",
+        p.loads
+    );
     for (node, pr) in p.prescribed.iter().enumerate() {
         if selected.contains(&node) {
             let x = mesh.nodes[node];
