@@ -7,6 +7,8 @@
 //!   wall time.
 //! * `bench contact`: the paper's contact benchmark for every handler, table written to
 //!   `docs/contact-bench.md`.
+//! * `bench warp`: the registration outputs (inverse map, warp, field) on the MNI152 T1
+//!   template with the demo result, against reading the image and a naive per-voxel loop.
 //! * `bench e2e`: every contact fixture solved by DR and by Newton–Krylov in child
 //!   processes: preparation and solve times, iterations, accuracy against CalculiX, peak
 //!   memory, speed-up (table in `docs/benchmarks.md`).
@@ -31,6 +33,7 @@ mod bench_contact;
 mod bench_e2e;
 mod bench_mesh;
 mod bench_solver;
+mod bench_warp;
 mod chart;
 mod deps;
 mod fuzz;
@@ -56,6 +59,8 @@ Commands:
                   composing crates for module cycles
   bench solver    kernel ns/element-step (1 vs 2 threads), DR vs Newton (release)
   bench contact   contact handlers on the paper's benchmark (writes docs/contact-bench.md)
+  bench warp      warp and field of the MNI152 T1 template with the demo result: seconds,
+                  against reading the image and a naive per-voxel TetLocator loop (release)
   bench e2e       [--case NAME] [--repeat N] every contact fixture solved by DR (baseline) and
                   Newton-Krylov (default): preparation, solve, iterations, accuracy against
                   CalculiX, peak memory, speed-up (writes docs/benchmarks.md)
@@ -142,6 +147,7 @@ fn main() -> ExitCode {
             Some("contact") => report(bench_contact::main(), "bench contact"),
             Some("e2e") => report(bench_e2e::main(&args[2..]), "bench e2e"),
             Some("mesh") => report(bench_mesh::main(), "bench mesh"),
+            Some("warp") => report(bench_warp::main(), "bench warp"),
             _ => {
                 eprintln!(
                     "bench what? `cargo xtask bench solver`, `bench contact`, `bench e2e` or `bench mesh`"

@@ -39,6 +39,9 @@ pub fn run(scene_path: &Path) -> Result<ExitCode, SceneError> {
         o,
         "  boundary: {fixed} nodes fully fixed, {moved} nodes with prescribed displacement"
     );
+    for line in &p.loads {
+        let _ = writeln!(o, "  {line}");
+    }
     if let (Some(s), Some(c)) = (&p.skull, &p.scene.contact) {
         let _ = writeln!(
             o,

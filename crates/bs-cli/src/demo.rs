@@ -1,5 +1,6 @@
 //! `brainshift demo`: the bundled MNI152 case, from its ready mesh or (`--from-image`)
-//! from its labelmap: image → mesh → solve, the whole path a newcomer would take.
+//! from its labelmap: image → mesh → solve → warped image, the whole path a newcomer would
+//! take.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -13,7 +14,8 @@ pub fn default_labelmap() -> PathBuf {
 
 /// Runs the demo into `out`. With `from_image` the brain mask is meshed first (4 mm
 /// tetrahedra, a skull cavity 3 mm out, the craniotomy pushed 8 mm in) into `out/mesh/`,
-/// and that scene is solved.
+/// and that scene is solved. Then the MNI152 T1 template is warped by the result
+/// (`out/warped_t1.nii.gz`) and the displacement field written (`out/field.nii.gz`).
 pub fn run(out: &Path, from_image: bool) -> Result<ExitCode, Box<dyn std::error::Error>> {
     let scene = if from_image {
         let mesh_dir = out.join("mesh");
@@ -37,5 +39,19 @@ pub fn run(out: &Path, from_image: bool) -> Result<ExitCode, Box<dyn std::error:
     } else {
         run::default_scene()
     };
-    run::run(&run::RunOptions { scene, out: out.to_path_buf(), threads: None, quiet: false })
+    let code =
+        run::run(&run::RunOptions { scene, out: out.to_path_buf(), threads: None, quiet: false })?;
+    if code != ExitCode::SUCCESS {
+        return Ok(code);
+    }
+    demo_images(out)
+}
+
+/// `demo`'s registration outputs: the bundled MNI152 T1 template warped by the result in
+/// `out` (out/warped_t1.nii.gz) and the displacement field on its grid (out/field.nii.gz).
+pub fn demo_images(out: &Path) -> Result<ExitCode, Box<dyn std::error::Error>> {
+    let t1 = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/mni152/t1.nii.gz");
+    crate::warp::run(&t1, out, &out.join("warped_t1.nii.gz"), false)?;
+    crate::field::run(&t1, out, &out.join("field.nii.gz"))?;
+    Ok(ExitCode::SUCCESS)
 }

@@ -1,14 +1,17 @@
 //! The `brainshift` command-line program: one module per command, each a thin front end
 //! (argument handling, progress, printing) over `bs-scene` (scenes, runs, checks) and
-//! `bs-mesh` (`inspect`).
+//! `bs-mesh` (`inspect`); `warp` and `field` apply a result to images through
+//! `bs_scene::registration`.
 
 pub mod check;
 pub mod demo;
+pub mod field;
 pub mod gap;
 pub mod inspect;
 pub mod mesh;
 pub mod run;
 pub mod sweep;
+pub mod warp;
 
 /// Writes `text` to standard output. A closed pipe (`brainshift inspect x | head`) is not an
 /// error worth a message: the reader has what it wanted, so the program ends quietly.

@@ -1,6 +1,6 @@
 //! `brainshift`: brain shift computation for image-guided neurosurgery.
 
-use bs_cli::{check, demo, gap, inspect, mesh, run, sweep};
+use bs_cli::{check, demo, field, gap, inspect, mesh, run, sweep, warp};
 use bs_scene::scene;
 
 use std::path::PathBuf;
@@ -54,7 +54,9 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
-    /// Runs the bundled real-anatomy scene (MNI152 brain in its skull, craniotomy pushed in).
+    /// Runs the bundled real-anatomy scene (MNI152 brain in its skull, craniotomy pushed in)
+    /// and applies the result to the MNI152 T1 template: DIR/warped_t1.nii.gz (the template
+    /// in the intra-operative configuration) and DIR/field.nii.gz (the displacement field).
     Demo {
         /// Output folder (created if missing).
         #[arg(long, default_value = "out")]
@@ -98,6 +100,39 @@ enum Command {
         /// moved 8 mm along -z) instead of as a comment to edit, so it runs as written.
         #[arg(long)]
         craniotomy: bool,
+    },
+    /// Resamples the pre-operative image into the intra-operative configuration of a run's
+    /// result: each voxel centre y inside the deformed brain gets the pre-operative value at
+    /// the reference point X(y) (exact inverse of the piecewise-linear FE map; trilinear, or
+    /// nearest voxel with --labels); other voxels keep their value. Same grid and header as
+    /// the input.
+    Warp {
+        /// The pre-operative image (NIfTI .nii or .nii.gz), in the mesh's world (mm).
+        #[arg(long)]
+        image: PathBuf,
+        /// The result directory written by `brainshift run` (result.vtu, report.json).
+        #[arg(long)]
+        result: PathBuf,
+        /// The warped image (.nii or .nii.gz).
+        #[arg(long)]
+        out: PathBuf,
+        /// The image is a labelmap: nearest-voxel sampling, written as labels.
+        #[arg(long)]
+        labels: bool,
+    },
+    /// Writes a run's result as an ITK displacement field on an image's grid:
+    /// d(y) = X(y) - y inside the deformed brain, zero outside. Loaded into 3D Slicer or ITK
+    /// as a transform and applied to the pre-operative image, it gives what `warp` gives.
+    Field {
+        /// The image whose grid the field is sampled on (NIfTI).
+        #[arg(long)]
+        reference: PathBuf,
+        /// The result directory written by `brainshift run`.
+        #[arg(long)]
+        result: PathBuf,
+        /// The field: .nii/.nii.gz (5-D float32, intent DISPVECT, RAS vectors) or .mha (LPS).
+        #[arg(long)]
+        out: PathBuf,
     },
     /// Brain–skull gap of every boundary node of a mesh (or of points): one CSV row per node
     /// `id,signed_distance,closest_x,closest_y,closest_z,outside` (positive = inside the
@@ -222,6 +257,12 @@ fn main() -> ExitCode {
             cavity,
             craniotomy,
         }),
+        Command::Warp { image, result, out, labels } => {
+            warp::run(&image, &result, &out, labels).map_err(Into::into)
+        }
+        Command::Field { reference, result, out } => {
+            field::run(&reference, &result, &out).map_err(Into::into)
+        }
         Command::Gap { skull, mesh, points, algorithm, out } => {
             let query = match (mesh, points) {
                 (Some(m), _) => Ok(gap::Query::Mesh(m)),

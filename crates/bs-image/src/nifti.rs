@@ -263,7 +263,13 @@ pub fn read_image(file: &Path) -> Result<NiftiImage, ImageError> {
 
 /// Reads a labelmap: every voxel a non-negative integer (integer or float datatype).
 pub fn read_labels(file: &Path) -> Result<Volume<u32>, ImageError> {
-    let (_, grid, values) = read_values(file)?;
+    read_labels_with_header(file).map(|(volume, _)| volume)
+}
+
+/// [`read_labels`] with the file's header, so that a labelmap written on the same grid
+/// (e.g. a warped segmentation) keeps it.
+pub fn read_labels_with_header(file: &Path) -> Result<(Volume<u32>, Header), ImageError> {
+    let (header, grid, values) = read_values(file)?;
     let mut data = Vec::with_capacity(values.len());
     for (n, &v) in values.iter().enumerate() {
         if v < 0.0 || v.fract() != 0.0 || v > u32::MAX as f64 {
@@ -279,7 +285,7 @@ pub fn read_labels(file: &Path) -> Result<Volume<u32>, ImageError> {
         }
         data.push(v as u32);
     }
-    Ok(Volume { grid, data })
+    Ok((Volume { grid, data }, Header { raw: header }))
 }
 
 /// Writes through a temporary file in the same directory, renamed into place: a failed

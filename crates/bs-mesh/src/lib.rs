@@ -14,10 +14,13 @@
 //!   (a bucket grid over a robust triangle–triangle test), part of the skull check
 //!   [`TriSurface::require_closed_outward`].
 //! * [`TetLocator`]: point location in a tetrahedral mesh, to carry a nodal field onto the
-//!   nodes of another mesh ([`transfer`]).
+//!   nodes of another mesh ([`transfer`]); [`lattice`]: every point of a regular lattice
+//!   (an image's voxel centres) located at once by rasterising the tetrahedra, in parallel.
 //! * [`io`]: readers and writers for Abaqus `.inp`, Gmsh `.msh` (2.2 and 4.1, ASCII or binary), VTK
 //!   legacy, VTU, STL, OBJ and OFF. Every parse error names the file and line (or byte
 //!   offset) and what was expected.
+//! * [`tps`]: thin-plate spline interpolation of a vector field from landmarks (loads from
+//!   intra-operative landmark pairs).
 //! * [`structured`]: structured box meshes (hexahedra or Kuhn tetrahedra, optionally
 //!   jittered) and [`rng`], the workspace's one seeded generator for tests and benchmarks.
 //!
@@ -41,6 +44,7 @@
 
 mod boundary;
 pub mod io;
+pub mod lattice;
 mod locate;
 mod mesh;
 pub mod quality;
@@ -48,6 +52,7 @@ pub mod rng;
 pub mod self_intersection;
 pub mod structured;
 mod surface;
+pub mod tps;
 mod validate;
 
 pub use boundary::BoundarySurface;

@@ -57,6 +57,18 @@ pub enum LocateError {
         /// Element id (file label).
         id: u64,
     },
+    /// A node of the element has a non-finite coordinate.
+    #[error("element {id} has a node with a non-finite coordinate")]
+    NonFinite {
+        /// Element id (file label).
+        id: u64,
+    },
+    /// More tetrahedra than a lattice location can index (u32).
+    #[error("{tetrahedra} tetrahedra are more than lattice location supports (2^32 - 1)")]
+    TooLarge {
+        /// How many there are.
+        tetrahedra: usize,
+    },
 }
 
 impl TetLocator {

@@ -182,7 +182,7 @@ fn mesh_and_fields() -> impl Strategy<Value = (Mesh, Fields)> {
                     node_sets: members(nsets),
                     element_sets: members(esets),
                 };
-                (mesh, Fields { point, cell })
+                (mesh, Fields { point, cell, ..Default::default() })
             },
         )
     })
@@ -547,10 +547,18 @@ fn vtk_errors_name_the_line() {
 #[test]
 fn writers_reject_inconsistent_input() {
     let mesh = Mesh::new(vec![Point3::origin(); 4], vec![Element::tet4([0, 1, 2, 3])]);
-    let fields = Fields { point: vec![Field::new("u", 3, vec![0.0; 11])], cell: vec![] };
+    let fields = Fields {
+        point: vec![Field::new("u", 3, vec![0.0; 11])],
+        cell: vec![],
+        ..Default::default()
+    };
     let e = vtu::write(&mut Vec::new(), &mesh, &fields, vtu::Encoding::Appended).unwrap_err();
     assert!(e.to_string().contains("point field 'u' has 11 values with 3 components"), "{e}");
-    let fields = Fields { point: vec![Field::new("node_id", 1, vec![0.0; 4])], cell: vec![] };
+    let fields = Fields {
+        point: vec![Field::new("node_id", 1, vec![0.0; 4])],
+        cell: vec![],
+        ..Default::default()
+    };
     assert!(vtk::write(&mut Vec::new(), &mesh, &fields).is_err());
     let bad = Mesh::new(vec![Point3::origin(); 3], vec![Element::tet4([0, 1, 2, 3])]);
     assert!(vtu::write(&mut Vec::new(), &bad, &Fields::default(), vtu::Encoding::Inline).is_err());
@@ -577,4 +585,22 @@ fn extreme_counts_are_errors_not_overflows() {
     let e = vtk::read(text.as_bytes(), &p("x.vtk")).unwrap_err();
     assert_eq!(e.location, Location::Line(11));
     assert!(e.message.contains("POINT_DATA array 'big' has 0 values"), "{}", e.message);
+}
+
+#[test]
+fn vtu_field_data_strings_round_trip() {
+    // The frame of a result travels as a FieldData String array named SPACE.
+    let mesh = bs_mesh::structured::box_mesh(1, 1.0, true);
+    let fields = Fields {
+        field_data: vec![("SPACE".into(), "LPS".into()), ("NOTE".into(), "a <b> & c".into())],
+        ..Default::default()
+    };
+    let mut bytes = Vec::new();
+    bs_mesh::io::vtu::write(&mut bytes, &mesh, &fields, bs_mesh::io::vtu::Encoding::Appended)
+        .unwrap();
+    let text = String::from_utf8_lossy(&bytes);
+    assert!(text.contains("<DataArray type=\"String\" Name=\"SPACE\""), "{text}");
+    let (back, f) = bs_mesh::io::vtu::read(&bytes, Path::new("t.vtu")).unwrap();
+    assert_eq!(back.nodes, mesh.nodes);
+    assert_eq!(f.field_data, fields.field_data);
 }

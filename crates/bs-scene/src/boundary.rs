@@ -16,6 +16,17 @@ pub type Prescribed = Vec<[Option<f64>; 3]>;
 
 /// Resolves every `[[boundary]]` of `scene` on `mesh`.
 pub fn resolve_boundaries(sp: &Path, scene: &Scene, mesh: &Mesh) -> Result<Prescribed, SceneError> {
+    resolve_boundaries_with_notes(sp, scene, mesh).map(|(p, _)| p)
+}
+
+/// [`resolve_boundaries`] with one line per intra-operative load or set-free selection
+/// (what `check` reports: the file or selection, how many nodes, the largest displacement).
+pub fn resolve_boundaries_with_notes(
+    sp: &Path,
+    scene: &Scene,
+    mesh: &Mesh,
+) -> Result<(Prescribed, Vec<String>), SceneError> {
+    let mut notes = Vec::new();
     let mut prescribed = vec![[None; 3]; mesh.nodes.len()];
     let mut set = |node: usize, c: usize, v: f64, source: &str| -> Result<(), SceneError> {
         match prescribed[node][c] {
@@ -55,29 +66,68 @@ pub fn resolve_boundaries(sp: &Path, scene: &Scene, mesh: &Mesh) -> Result<Presc
             }
             continue;
         }
-        let name = b.nset.as_deref().unwrap_or_default();
+        let (name, nodes) = select_nodes(sp, scene, mesh, i, b)?;
+        let key = if b.nset.is_some() { " nset" } else { "" };
         let err = |message: String| SceneError::Set {
             scene: sp.to_path_buf(),
-            key: format!("[[boundary]] #{} nset", i + 1),
-            set: name.to_string(),
+            key: format!("[[boundary]] #{}{key}", i + 1),
+            set: name.clone(),
             message,
         };
-        let nodes = mesh.node_set(name).ok_or_else(|| {
-            err(format!(
-                "no such node set in {} (it has: {})",
-                scene.mesh.file.display(),
-                names(mesh.node_sets.keys())
-            ))
-        })?;
         if nodes.is_empty() {
+            let what = if b.nset.is_some() {
+                "the node set selects no node of"
+            } else {
+                "the selection holds no boundary node of"
+            };
             return Err(err(format!(
-                "the node set selects no node of {} (empty, or its ids are not in the mesh); the \
-                 boundary condition would prescribe nothing",
+                "{what} {} (empty, its ids not in the mesh, or a sphere or mask away from the \
+                 brain's surface); the boundary condition would prescribe nothing",
                 scene.mesh.file.display()
             )));
         }
         let source = format!("[[boundary]] #{}", i + 1);
-        for &n in nodes {
+        if b.nset.is_none() && b.surface.is_none() && b.landmarks.is_none() {
+            notes.push(format!("[[boundary]] #{} {name}: {} boundary nodes", i + 1, nodes.len()));
+        }
+        if let Some(file) = &b.surface {
+            let limit = b.max_distance.unwrap_or(mm_in_mesh_units(scene));
+            let moves = crate::loads::surface_displacements(sp, i, file, mesh, &nodes, limit)?;
+            notes.push(format!(
+                "[[boundary]] #{} surface {} on {name}: {} nodes moved to their closest points, \
+                 largest move {:.4} (max_distance {limit})",
+                i + 1,
+                file.display(),
+                nodes.len(),
+                moves.iter().map(|m| m.norm()).fold(0.0, f64::max)
+            ));
+            for (&n, d) in nodes.iter().zip(moves) {
+                for c in 0..3 {
+                    set(n, c, d[c], &source)?;
+                }
+            }
+            continue;
+        }
+        if let Some(file) = &b.landmarks {
+            let limit = b.max_extrapolation.unwrap_or(mm_in_mesh_units(scene));
+            let moves = crate::loads::landmark_displacements(sp, i, file, mesh, &nodes, limit)?;
+            notes.push(format!(
+                "[[boundary]] #{} landmarks {} on {name}: {} nodes, largest displacement {:.4} \
+                 (thin-plate spline; max_extrapolation {limit})",
+                i + 1,
+                file.display(),
+                nodes.len(),
+                moves.iter().map(|m| m.norm()).fold(0.0, f64::max)
+            ));
+            for (&n, d) in nodes.iter().zip(moves) {
+                for c in 0..3 {
+                    set(n, c, d[c], &source)?;
+                }
+            }
+            continue;
+        }
+        let source = format!("[[boundary]] #{}", i + 1);
+        for &n in &nodes {
             if let Some(fix) = &b.fix {
                 for c in fix {
                     set(n, c.index(), 0.0, &source)?;
@@ -92,7 +142,63 @@ pub fn resolve_boundaries(sp: &Path, scene: &Scene, mesh: &Mesh) -> Result<Presc
             }
         }
     }
-    Ok(prescribed)
+    Ok((prescribed, notes))
+}
+
+/// [`crate::scene::DEFAULT_MAX_DISTANCE_MM`] in the scene's length unit.
+fn mm_in_mesh_units(scene: &Scene) -> f64 {
+    crate::scene::DEFAULT_MAX_DISTANCE_MM * 1e-3 / scene.units.metres()
+}
+
+/// The nodes a `[[boundary]]` selects (sorted indices) and a name for messages: its node
+/// set, or the mesh's boundary nodes inside its sphere or mask.
+fn select_nodes(
+    sp: &Path,
+    scene: &Scene,
+    mesh: &Mesh,
+    i: usize,
+    b: &crate::scene::Boundary,
+) -> Result<(String, Vec<usize>), SceneError> {
+    if let Some(name) = &b.nset {
+        let nodes = mesh.node_set(name).ok_or_else(|| SceneError::Set {
+            scene: sp.to_path_buf(),
+            key: format!("[[boundary]] #{} nset", i + 1),
+            set: name.clone(),
+            message: format!(
+                "no such node set in {} (it has: {})",
+                scene.mesh.file.display(),
+                names(mesh.node_sets.keys())
+            ),
+        })?;
+        return Ok((name.clone(), nodes.to_vec()));
+    }
+    let surface_nodes = mesh.boundary().volume_node;
+    if let Some(sphere) = &b.sphere {
+        let c = bs_mesh::Point3::from(sphere.centre);
+        let nodes = surface_nodes
+            .into_iter()
+            .filter(|&n| (mesh.nodes[n] - c).norm() <= sphere.radius)
+            .collect();
+        let name = format!("sphere centre {:?} radius {}", sphere.centre, sphere.radius);
+        return Ok((name, nodes));
+    }
+    let Some(file) = &b.mask else { return Ok((String::new(), Vec::new())) };
+    let mask = bs_image::nifti::read_labels(file).map_err(|e| SceneError::Read {
+        scene: sp.to_path_buf(),
+        key: format!("[[boundary]] #{} mask", i + 1),
+        message: format!("{e}; the mask must be a NIfTI labelmap (non-zero = selected)"),
+    })?;
+    // Mesh frame and units → the image's world frame (NIfTI: RAS) in mm.
+    let space = scene.space.space();
+    let scale = scene.units.metres() / 1e-3;
+    let nodes = surface_nodes
+        .into_iter()
+        .filter(|&n| {
+            let p = space.convert_point(bs_image::Space::Ras, mesh.nodes[n] * scale);
+            bs_image::sample::nearest(&mask, &p).is_some_and(|v| v != 0)
+        })
+        .collect();
+    Ok((format!("mask {}", file.display()), nodes))
 }
 
 /// Reads `node_id,ux,uy,uz` rows (with a header line).

@@ -130,6 +130,23 @@ pub enum SceneError {
         /// What is wrong and how to fix it.
         message: String,
     },
+    /// An image cannot be read or does not fit the result (wrong dimension, a mesh outside
+    /// its extent: wrong frame).
+    #[error("{}: {message}", file.display())]
+    Image {
+        /// The image file.
+        file: PathBuf,
+        /// What is wrong, with both frames and extents when they disagree, and the fix.
+        message: String,
+    },
+    /// A result directory cannot be read back (missing files, no displacement field).
+    #[error("{}: {message}", dir.display())]
+    Result {
+        /// The result directory.
+        dir: PathBuf,
+        /// What is missing or wrong and how to fix it.
+        message: String,
+    },
     /// An output file could not be written.
     #[error("{}: {message}", path.display())]
     Write {
@@ -164,6 +181,8 @@ impl SceneError {
             SceneError::Solve(e) => e.kind(),
             SceneError::Verify(e) => e.kind(),
             SceneError::Labelmap { .. } => "Labelmap",
+            SceneError::Image { .. } => "Image",
+            SceneError::Result { .. } => "Result",
             SceneError::Write { .. } => "Write",
         }
     }

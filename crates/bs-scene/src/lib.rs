@@ -4,7 +4,8 @@
 //! The data flow, one module per step:
 //!
 //! * [`scene`]: the scene file (TOML) and its keys — the contract users write;
-//! * [`prepare`] (with [`boundary`]): files read, sets resolved, everything checked that
+//! * [`prepare`] (with [`boundary`] and `loads`, displacements from an intra-operative
+//!   surface or landmark pairs): files read, sets resolved, everything checked that
 //!   can be checked without computing — a [`Prepared`] scene;
 //! * [`compose`] (with [`skull_contact`]): model, loads and contact handler, the only
 //!   place that knows both bs-dr and bs-contact;
@@ -12,6 +13,9 @@
 //! * [`solve`]: the solver a scene asks for, prepared once and driven with an observer;
 //! * [`verify`]: the result checked independently of the solver (contact, J, equilibrium);
 //! * [`run`] and [`output`]: the verified run of a scene and its three files;
+//! * [`registration`]: a run's result read back and applied to images (the pre-operative
+//!   image warped into the intra-operative configuration, the displacement field for ITK
+//!   and 3D Slicer);
 //! * [`check`]: everything `run` does before solving, with [`memory`] and [`advice`];
 //! * [`study`]: one scene solved with variations (what validation, charts and stability
 //!   maps measure), [`verdict`]: how such a run ended, and [`findings`]: the
@@ -44,10 +48,12 @@ pub mod compose;
 mod error;
 pub mod findings;
 pub mod gap;
+mod loads;
 pub mod memory;
 pub mod mesh_scene;
 pub mod output;
 pub mod prepare;
+pub mod registration;
 pub mod run;
 pub mod scene;
 pub mod skull_contact;

@@ -79,6 +79,8 @@ pub struct RunReport {
     pub threads: usize,
     /// Length unit of all lengths in this report.
     pub units: &'static str,
+    /// Anatomical frame of the mesh, the displacements and every output (`"RAS"`/`"LPS"`).
+    pub space: &'static str,
 }
 
 /// Where the files of a run went.
@@ -138,6 +140,7 @@ pub fn report(run: &Run, s: &Solved, ctx: RunContext) -> RunReport {
         slave_nodes: c.slaves.len(),
         threads: ctx.threads,
         units: p.scene.units.symbol(),
+        space: p.scene.space.space().name(),
     }
 }
 
@@ -164,6 +167,8 @@ pub fn write_outputs(
             Field::new("von_mises", 1, s.verification.measures.von_mises.clone()),
             Field::new("J", 1, s.verification.measures.volume_ratio.clone()),
         ],
+        // The frame of the coordinates and displacements (read back by `warp` and `field`).
+        field_data: vec![("SPACE".into(), p.scene.space.space().name().into())],
     };
     let written = Written {
         vtu: out.join("result.vtu"),

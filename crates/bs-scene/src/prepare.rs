@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use bs_mesh::{Mesh, TriSurface};
 
 use crate::SceneError;
-use crate::boundary::{names, resolve_boundaries};
+use crate::boundary::{names, resolve_boundaries_with_notes};
 use crate::scene::{ElementChoice, Scene, SolverKind, Units};
 
 /// A scene with its files read and its names resolved.
@@ -30,6 +30,8 @@ pub struct Prepared {
     pub skull: Option<TriSurface>,
     /// Things worth knowing that do not stop a run.
     pub warnings: Vec<String>,
+    /// One line per intra-operative load (surface, landmarks) or sphere/mask selection.
+    pub loads: Vec<String>,
 }
 
 impl Prepared {
@@ -89,7 +91,7 @@ impl Prepared {
         }
         let element = element_of(&sp, &scene, &mesh)?;
         let region_of_element = regions(&sp, &scene, &mesh)?;
-        let prescribed = resolve_boundaries(&sp, &scene, &mesh)?;
+        let (prescribed, load_notes) = resolve_boundaries_with_notes(&sp, &scene, &mesh)?;
         let skull = match (&scene.contact, skull) {
             (None, None) => None,
             (Some(c), Some(s)) => {
@@ -162,6 +164,7 @@ impl Prepared {
             prescribed,
             skull,
             warnings,
+            loads: load_notes,
         };
         prepared.require_supported()?;
         Ok(prepared)

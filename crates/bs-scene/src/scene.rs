@@ -3,6 +3,7 @@
 //!
 //! ```toml
 //! units = "mm"
+//! space = "RAS"            # or "LPS"; the frame of the mesh (default RAS)
 //! [mesh]
 //! file = "brain.inp"
 //! element = "t4anp"
@@ -56,6 +57,28 @@ impl Units {
         match self {
             Units::Mm => "mm",
             Units::M => "m",
+        }
+    }
+}
+
+/// The anatomical frame of the mesh coordinates (and of every displacement and output).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+pub enum SpaceName {
+    /// Right–Anterior–Superior: NIfTI's world frame and 3D Slicer's (the default).
+    #[default]
+    #[serde(rename = "RAS")]
+    Ras,
+    /// Left–Posterior–Superior: DICOM's and ITK's frame.
+    #[serde(rename = "LPS")]
+    Lps,
+}
+
+impl SpaceName {
+    /// The frame.
+    pub fn space(self) -> bs_image::Space {
+        match self {
+            SpaceName::Ras => bs_image::Space::Ras,
+            SpaceName::Lps => bs_image::Space::Lps,
         }
     }
 }
@@ -234,18 +257,47 @@ impl Displacement {
     }
 }
 
+/// A sphere selecting the mesh's boundary nodes inside it (a craniotomy without a node set).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Sphere {
+    /// Centre, mesh frame and units.
+    pub centre: [f64; 3],
+    /// Radius, mesh units.
+    pub radius: f64,
+}
+
+/// Default of `max_distance` (surface loads) and `max_extrapolation` (landmark loads), in mm.
+pub const DEFAULT_MAX_DISTANCE_MM: f64 = 10.0;
+
 /// A boundary condition on a node set (or from a file).
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Boundary {
     /// Node set name in the mesh file.
     pub nset: Option<String>,
+    /// Instead of `nset`: the mesh's boundary nodes inside this sphere.
+    pub sphere: Option<Sphere>,
+    /// Instead of `nset`: the mesh's boundary nodes whose nearest voxel of this NIfTI image
+    /// is non-zero (the image's world frame, mm).
+    pub mask: Option<PathBuf>,
     /// Components held at zero.
     pub fix: Option<Vec<Component>>,
     /// Final displacement on the 3-4-5 ramp.
     pub displacement: Option<Displacement>,
     /// CSV with `node_id,ux,uy,uz` per prescribed node (relative to the scene file).
     pub displacement_file: Option<PathBuf>,
+    /// Intra-operative surface (.stl, .obj, .off; mesh frame and units): each selected node
+    /// moves to its closest point on it.
+    pub surface: Option<PathBuf>,
+    /// Largest node-to-surface distance accepted (mesh units; default 10 mm).
+    pub max_distance: Option<f64>,
+    /// CSV of landmark pairs `x,y,z,x2,y2,z2` (pre-operative, intra-operative; mesh frame and
+    /// units): the selected nodes move by the thin-plate spline of the landmark displacements.
+    pub landmarks: Option<PathBuf>,
+    /// Largest distance of a selected node outside the landmarks' bounding box (mesh units;
+    /// default 10 mm).
+    pub max_extrapolation: Option<f64>,
 }
 
 /// Contact handler names.
@@ -369,6 +421,9 @@ pub struct MeshSection {
 pub struct Scene {
     /// Length unit of the mesh files.
     pub units: Units,
+    /// Anatomical frame of the mesh files: `"RAS"` (default) or `"LPS"`.
+    #[serde(default)]
+    pub space: SpaceName,
     /// The brain mesh.
     pub mesh: MeshSection,
     /// Material regions.
@@ -396,7 +451,10 @@ impl Scene {
             c.skull = dir.join(&c.skull);
         }
         for b in &mut scene.boundaries {
-            if let Some(f) = &mut b.displacement_file {
+            for f in [&mut b.displacement_file, &mut b.mask, &mut b.surface, &mut b.landmarks]
+                .into_iter()
+                .flatten()
+            {
                 *f = dir.join(&*f);
             }
         }
@@ -451,18 +509,68 @@ impl Scene {
             }
         }
         for (i, b) in scene.boundaries.iter().enumerate() {
-            let given = [b.fix.is_some(), b.displacement.is_some(), b.displacement_file.is_some()];
+            let given = [
+                b.fix.is_some(),
+                b.displacement.is_some(),
+                b.displacement_file.is_some(),
+                b.surface.is_some(),
+                b.landmarks.is_some(),
+            ];
             if given.iter().filter(|&&g| g).count() != 1 {
                 return Err(format!(
-                    "[[boundary]] #{}: give exactly one of fix, displacement or displacement_file",
+                    "[[boundary]] #{}: give exactly one of fix, displacement or displacement_file \
+                     (or an intra-operative load: surface or landmarks)",
                     i + 1
                 ));
             }
-            if b.displacement_file.is_none() && b.nset.is_none() {
+            let selections = [b.nset.is_some(), b.sphere.is_some(), b.mask.is_some()];
+            let selected = selections.iter().filter(|&&g| g).count();
+            if b.displacement_file.is_some() && (b.sphere.is_some() || b.mask.is_some()) {
                 return Err(format!(
-                    "[[boundary]] #{}: nset is required with fix or displacement",
+                    "[[boundary]] #{}: displacement_file names its nodes; drop sphere or mask",
                     i + 1
                 ));
+            }
+            if b.displacement_file.is_none() && selected == 0 {
+                return Err(format!(
+                    "[[boundary]] #{}: nset is required with fix or displacement (or select \
+                     the nodes with sphere or mask)",
+                    i + 1
+                ));
+            }
+            if selected > 1 {
+                return Err(format!(
+                    "[[boundary]] #{}: select the nodes with exactly one of nset, sphere or mask",
+                    i + 1
+                ));
+            }
+            if b.max_distance.is_some() && b.surface.is_none() {
+                return Err(format!("[[boundary]] #{}: max_distance goes with surface", i + 1));
+            }
+            if b.max_extrapolation.is_some() && b.landmarks.is_none() {
+                return Err(format!(
+                    "[[boundary]] #{}: max_extrapolation goes with landmarks",
+                    i + 1
+                ));
+            }
+            for (key, v) in [
+                ("max_distance", b.max_distance),
+                ("max_extrapolation", b.max_extrapolation),
+                ("sphere.radius", b.sphere.map(|s| s.radius)),
+            ] {
+                if let Some(v) = v
+                    && !(v > 0.0 && v.is_finite())
+                {
+                    return Err(format!(
+                        "[[boundary]] #{}: {key} must be positive (mesh units), got {v}",
+                        i + 1
+                    ));
+                }
+            }
+            if let Some(s) = &b.sphere
+                && !s.centre.iter().all(|c| c.is_finite())
+            {
+                return Err(format!("[[boundary]] #{}: sphere.centre must be finite", i + 1));
             }
             if let Some(d) = &b.displacement {
                 if d.components().iter().all(Option::is_none) {

@@ -172,6 +172,10 @@ pub struct Fields {
     pub point: Vec<Field>,
     /// Per-element arrays.
     pub cell: Vec<Field>,
+    /// Named strings about the whole dataset (VTU `FieldData` String arrays, e.g. `SPACE`
+    /// = `RAS`, the anatomical frame of the coordinates). Written and read by the VTU format
+    /// only.
+    pub field_data: Vec<(String, String)>,
 }
 
 /// What a file holds.
@@ -272,18 +276,10 @@ pub fn write_mesh_in_space(
     fields: &Fields,
     space: &str,
 ) -> Result<(), MeshIoError> {
-    match Format::from_path(path) {
-        Some(Format::Vtu) => write_atomic(path, |w| {
-            vtu::write_with_field_data(
-                w,
-                mesh,
-                fields,
-                vtu::Encoding::Appended,
-                &[("SPACE", space)],
-            )
-        }),
-        _ => write_mesh(path, mesh, fields),
-    }
+    let mut fields = fields.clone();
+    fields.field_data.retain(|(name, _)| name != "SPACE");
+    fields.field_data.push(("SPACE".into(), space.into()));
+    write_mesh(path, mesh, &fields)
 }
 
 /// Writes a triangle surface as `.off` or `.stl` (binary), chosen by extension.

@@ -410,20 +410,10 @@ pub(crate) fn xml_escape(s: &str) -> String {
 }
 
 /// Writes a VTU file (see the module documentation for the layout).
+/// `fields.field_data` become one `<FieldData>` `String` array each (the characters' codes
+/// and a terminating 0, as VTK writes them), e.g. `SPACE` = `RAS`, which 3D Slicer reads as
+/// the coordinate frame.
 pub fn write(w: &mut dyn Write, mesh: &Mesh, fields: &Fields, enc: Encoding) -> io::Result<()> {
-    write_with_field_data(w, mesh, fields, enc, &[])
-}
-
-/// Writes a VTU file with string field data: one `<FieldData>` `String` array per
-/// `(name, value)` pair (ASCII, the characters' codes and a terminating 0, as VTK writes
-/// them), e.g. `("SPACE", "RAS")`, which 3D Slicer reads as the coordinate frame.
-pub fn write_with_field_data(
-    w: &mut dyn Write,
-    mesh: &Mesh,
-    fields: &Fields,
-    enc: Encoding,
-    field_data: &[(&str, &str)],
-) -> io::Result<()> {
     check_for_write(mesh, fields)?;
     let (nn, ne) = (mesh.nodes.len(), mesh.elements.len());
     let mut point = Vec::new();
@@ -504,16 +494,17 @@ pub fn write_with_field_data(
     )?;
     writeln!(w, "<!-- written by brainshift -->")?;
     writeln!(w, "<UnstructuredGrid>")?;
-    if !field_data.is_empty() {
+    if !fields.field_data.is_empty() {
+        // VTK's String arrays: the bytes as integers, each string ended by a 0.
         writeln!(w, "<FieldData>")?;
-        for (name, value) in field_data {
-            let codes: Vec<String> =
-                value.bytes().chain(std::iter::once(0)).map(|b| b.to_string()).collect();
+        for (name, value) in &fields.field_data {
+            let bytes: Vec<String> = value.bytes().chain([0]).map(|b| b.to_string()).collect();
             writeln!(
                 w,
-                "<DataArray type=\"String\" Name=\"{}\" NumberOfTuples=\"1\" format=\"ascii\">\n{}\n</DataArray>",
+                "<DataArray type=\"String\" Name=\"{}\" NumberOfTuples=\"1\" \
+                 format=\"ascii\">\n{}\n</DataArray>",
                 xml_escape(name),
-                codes.join(" ")
+                bytes.join(" ")
             )?;
         }
         writeln!(w, "</FieldData>")?;
@@ -893,6 +884,7 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
     let mut points = None;
     let mut cells = Cells { loc: Some(Location::Byte(piece_pos)), ..Default::default() };
     let (mut pdata, mut cdata) = (Vec::new(), Vec::new());
+    let mut field_data = Vec::new();
     for a in arrays {
         // Field data (e.g. Slicer's SPACE string) and arrays outside the grid's sections
         // carry nothing the mesh needs.
@@ -900,6 +892,21 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
             continue;
         }
         let ty = a.attrs.get("type").cloned().unwrap_or_default();
+        if a.section == "FieldData" {
+            // Dataset-level strings (e.g. SPACE) in ASCII; other field data is not used.
+            let ascii = a.attrs.get("format").is_none_or(|f| f == "ascii");
+            if ty == "String" && ascii {
+                let text = String::from_utf8_lossy(&a.text);
+                let bytes: Vec<u8> = text
+                    .split_ascii_whitespace()
+                    .map_while(|b| b.parse::<u8>().ok())
+                    .take_while(|&b| b != 0)
+                    .collect();
+                let name = a.attrs.get("Name").cloned().unwrap_or_default();
+                field_data.push((name, String::from_utf8_lossy(&bytes).into_owned()));
+            }
+            continue;
+        }
         let fail = |m: String| {
             err(a.pos, format!("DataArray '{}': {m}", a.attrs.get("Name").map_or("", |s| s)))
         };
@@ -989,7 +996,9 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
             ),
         ));
     }
-    assemble(file, npoints, &points, &cells, pdata, cdata)
+    let (mesh, mut fields) = assemble(file, npoints, &points, &cells, pdata, cdata)?;
+    fields.field_data = field_data;
+    Ok((mesh, fields))
 }
 
 fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
@@ -1062,14 +1071,9 @@ mod tests {
     fn space_field_data_is_written_and_skipped_on_read() {
         let mesh = crate::structured::box_mesh(1, 1.0, true);
         let mut out = Vec::new();
-        write_with_field_data(
-            &mut out,
-            &mesh,
-            &Fields::default(),
-            Encoding::Inline,
-            &[("SPACE", "RAS")],
-        )
-        .unwrap();
+        let fields =
+            Fields { field_data: vec![("SPACE".into(), "RAS".into())], ..Fields::default() };
+        write(&mut out, &mesh, &fields, Encoding::Inline).unwrap();
         let text = String::from_utf8(out.clone()).unwrap();
         let fd = text.find("<FieldData>").unwrap();
         assert!(fd < text.find("<Piece").unwrap());

@@ -1,0 +1,182 @@
+//! Loads from intra-operative data, alternatives to a typed displacement in `[[boundary]]`:
+//! an intra-operative surface (each selected node moves to its closest point on it, by
+//! bs-contact's exact point–triangle projection) and landmark pairs (the selected nodes move
+//! by bs-mesh's thin-plate spline of the landmark displacements). Both are in the mesh's
+//! frame and units. Nodes too far from the data are errors listing them, never silently
+//! extrapolated.
+
+use std::path::Path;
+
+use bs_mesh::tps::ThinPlateSpline;
+use bs_mesh::{Mesh, Point3, Vector3};
+
+use crate::SceneError;
+
+/// How many offending nodes an error lists.
+const LIST: usize = 8;
+
+fn list(rows: &[(u64, f64)]) -> String {
+    let v: Vec<String> =
+        rows.iter().take(LIST).map(|(n, d)| format!("node {n} ({d:.3})")).collect();
+    format!("{}{}", v.join(", "), if rows.len() > LIST { ", ..." } else { "" })
+}
+
+/// The displacement of each of `nodes` to its closest point on the surface in `file`.
+pub(crate) fn surface_displacements(
+    sp: &Path,
+    i: usize,
+    file: &Path,
+    mesh: &Mesh,
+    nodes: &[usize],
+    max_distance: f64,
+) -> Result<Vec<Vector3<f64>>, SceneError> {
+    let key = format!("[[boundary]] #{} surface", i + 1);
+    let surface = bs_mesh::io::read_surface(file).map_err(|e| SceneError::Read {
+        scene: sp.to_path_buf(),
+        key: key.clone(),
+        message: e.to_string(),
+    })?;
+    let v = &surface.vertices;
+    if surface.triangles.is_empty() || v.iter().any(|p| !p.iter().all(|x| x.is_finite())) {
+        return Err(SceneError::Read {
+            scene: sp.to_path_buf(),
+            key,
+            message: format!(
+                "{}: the surface has no triangles or a non-finite vertex",
+                file.display()
+            ),
+        });
+    }
+    let mut moves = Vec::with_capacity(nodes.len());
+    let mut far = Vec::new();
+    for &n in nodes {
+        let p = mesh.nodes[n];
+        let mut best = (f64::INFINITY, p);
+        for t in &surface.triangles {
+            let (q, _) =
+                bs_contact::geometry::closest_point_triangle(&p, &v[t[0]], &v[t[1]], &v[t[2]]);
+            let d2 = (q - p).norm_squared();
+            if d2 < best.0 {
+                best = (d2, q);
+            }
+        }
+        let d = best.0.sqrt();
+        if d > max_distance {
+            far.push((mesh.node_ids[n], d));
+        }
+        moves.push(best.1 - p);
+    }
+    if !far.is_empty() {
+        far.sort_by(|a, b| b.1.total_cmp(&a.1));
+        return Err(SceneError::Set {
+            scene: sp.to_path_buf(),
+            key,
+            set: file.display().to_string(),
+            message: format!(
+                "{} of {} selected nodes are farther than max_distance = {max_distance} from the \
+                 surface: {} (distance, mesh units); check the surface's frame and units, or \
+                 select only the exposed nodes",
+                far.len(),
+                nodes.len(),
+                list(&far)
+            ),
+        });
+    }
+    Ok(moves)
+}
+
+/// Landmarks: pre-operative positions and their displacements.
+type Landmarks = (Vec<Point3<f64>>, Vec<Vector3<f64>>);
+
+/// Landmark pairs read from a CSV with header `x,y,z,x2,y2,z2`.
+pub(crate) fn read_landmarks(sp: &Path, key: &str, file: &Path) -> Result<Landmarks, SceneError> {
+    let read = |message: String| SceneError::Read {
+        scene: sp.to_path_buf(),
+        key: key.to_string(),
+        message: format!("{}: {message}", file.display()),
+    };
+    let text = std::fs::read_to_string(file).map_err(|e| read(e.to_string()))?;
+    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
+    let header: Vec<String> = lines
+        .next()
+        .map(|(_, h)| h.split(',').map(|s| s.trim().to_ascii_lowercase()).collect())
+        .unwrap_or_default();
+    if header != ["x", "y", "z", "x2", "y2", "z2"] {
+        return Err(read(
+            "line 1: the header must be x,y,z,x2,y2,z2 (pre-operative, then intra-operative \
+             position)"
+                .into(),
+        ));
+    }
+    let (mut points, mut moves) = (Vec::new(), Vec::<Vector3<f64>>::new());
+    let mut lines_of = Vec::new();
+    for (l, line) in lines {
+        let v: Vec<f64> = line.split(',').filter_map(|s| s.trim().parse().ok()).collect();
+        if v.len() != 6 || line.split(',').count() != 6 {
+            return Err(read(format!("line {}: expected 6 numbers, found '{line}'", l + 1)));
+        }
+        if !v.iter().all(|x| x.is_finite()) {
+            return Err(read(format!("line {}: a coordinate is not finite: '{line}'", l + 1)));
+        }
+        let p = Point3::new(v[0], v[1], v[2]);
+        if let Some(k) = points.iter().position(|q: &Point3<f64>| (q - p).norm() == 0.0) {
+            return Err(read(format!(
+                "line {}: the pre-operative point repeats line {}; each landmark once",
+                l + 1,
+                lines_of[k]
+            )));
+        }
+        points.push(p);
+        moves.push(Vector3::new(v[3], v[4], v[5]) - p.coords);
+        lines_of.push(l + 1);
+    }
+    Ok((points, moves))
+}
+
+/// The thin-plate spline of the landmark displacements at each of `nodes`. A node farther
+/// than `max_extrapolation` outside the landmarks' (pre-operative) bounding box is an error.
+pub(crate) fn landmark_displacements(
+    sp: &Path,
+    i: usize,
+    file: &Path,
+    mesh: &Mesh,
+    nodes: &[usize],
+    max_extrapolation: f64,
+) -> Result<Vec<Vector3<f64>>, SceneError> {
+    let key = format!("[[boundary]] #{} landmarks", i + 1);
+    let (points, moves) = read_landmarks(sp, &key, file)?;
+    let tps = ThinPlateSpline::fit(&points, &moves).map_err(|e| SceneError::Read {
+        scene: sp.to_path_buf(),
+        key: key.clone(),
+        message: format!("{}: {e}", file.display()),
+    })?;
+    let lo = points.iter().fold(Point3::from([f64::INFINITY; 3]), |a, p| a.inf(p));
+    let hi = points.iter().fold(Point3::from([f64::NEG_INFINITY; 3]), |a, p| a.sup(p));
+    let mut far = Vec::new();
+    let mut out = Vec::with_capacity(nodes.len());
+    for &n in nodes {
+        let p = mesh.nodes[n];
+        let outside = Vector3::from_fn(|c, _| (lo[c] - p[c]).max(p[c] - hi[c]).max(0.0));
+        if outside.norm() > max_extrapolation {
+            far.push((mesh.node_ids[n], outside.norm()));
+        }
+        out.push(tps.evaluate(&p));
+    }
+    if !far.is_empty() {
+        far.sort_by(|a, b| b.1.total_cmp(&a.1));
+        return Err(SceneError::Set {
+            scene: sp.to_path_buf(),
+            key,
+            set: file.display().to_string(),
+            message: format!(
+                "{} of {} selected nodes lie farther than max_extrapolation = {max_extrapolation} \
+                 outside the landmarks' bounding box: {} (distance, mesh units); add landmarks \
+                 around them or select fewer nodes",
+                far.len(),
+                nodes.len(),
+                list(&far)
+            ),
+        });
+    }
+    Ok(out)
+}

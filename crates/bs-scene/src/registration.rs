@@ -1,0 +1,480 @@
+//! Registration outputs: a computed brain shift applied to images. The result of a run (the
+//! reference mesh and its nodal displacements, `result.vtu`, with the frame and unit from
+//! `report.json`) defines the piecewise-linear map X ↦ x = X + u(X) on every tetrahedron. Its
+//! exact inverse on an image grid (which reference point X lands on each voxel centre y of
+//! the intra-operative configuration) is found by `bs_mesh::lattice`; here the run
+//! directory is read, frames and units are reconciled with the image's, and the two
+//! outputs are made:
+//!
+//! * [`InverseMap::warp`]: the pre-operative image resampled into the intra-operative
+//!   configuration, `warped(y) = preop(X(y))` (trilinear; nearest for labelmaps); voxels
+//!   outside the deformed brain keep their value;
+//! * [`InverseMap::field`]: the same map as a displacement field `d(y) = X(y) − y` (zero
+//!   outside the deformed brain), the convention of ITK's `DisplacementFieldTransform` (a
+//!   resampling transform maps output points to input points), so that ITK or 3D Slicer
+//!   resampling the pre-operative image with it gives [`InverseMap::warp`]'s image.
+//!
+//! Images are in millimetres in their world frame (NIfTI: RAS). A result in metres or in
+//! LPS is converted; a mesh that does not lie in the image (wrong frame, wrong image) is an
+//! error naming both frames and extents, never an empty warp.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use bs_image::{Grid, Space, Volume};
+use bs_mesh::lattice::{LatticeLocation, tetrahedra};
+use bs_mesh::{Mesh, Point3, Vector3};
+
+use crate::SceneError;
+use crate::scene::Units;
+
+/// A run's result read back from its directory.
+#[derive(Debug, Clone)]
+pub struct RunResult {
+    /// The directory (for messages).
+    pub dir: PathBuf,
+    /// The reference mesh.
+    pub mesh: Mesh,
+    /// Nodal displacements, in the mesh's frame and unit.
+    pub displacements: Vec<Vector3<f64>>,
+    /// The frame of the mesh coordinates and displacements.
+    pub space: Space,
+    /// The length unit of the mesh.
+    pub units: Units,
+    /// Things worth knowing (e.g. a report written before frames were recorded).
+    pub notes: Vec<String>,
+}
+
+impl RunResult {
+    /// Reads `dir/result.vtu` (mesh and `displacement` point data) and `dir/report.json`
+    /// (`space`, `units`), as `brainshift run` writes them.
+    pub fn load(dir: &Path) -> Result<RunResult, SceneError> {
+        let err = |message: String| SceneError::Result { dir: dir.to_path_buf(), message };
+        let vtu = dir.join("result.vtu");
+        let report = dir.join("report.json");
+        if !vtu.is_file() || !report.is_file() {
+            return Err(err(format!(
+                "not a result directory: {} and {} are needed (written by `brainshift run \
+                 SCENE --out DIR`)",
+                vtu.display(),
+                report.display()
+            )));
+        }
+        let text = std::fs::read_to_string(&report)
+            .map_err(|e| err(format!("{}: cannot read: {e}", report.display())))?;
+        let json: serde_json::Value = serde_json::from_str(&text)
+            .map_err(|e| err(format!("{}: not JSON: {e}", report.display())))?;
+        let mut notes = Vec::new();
+        let space = match json.get("space").and_then(|s| s.as_str()) {
+            Some(s) => Space::from_name(s).ok_or_else(|| {
+                err(format!(
+                    "{}: \"space\" is \"{s}\"; expected \"RAS\" or \"LPS\"",
+                    report.display()
+                ))
+            })?,
+            None => {
+                notes.push(format!(
+                    "{} names no \"space\" (written before frames were recorded): the mesh is \
+                     taken as RAS; re-run the scene to record it",
+                    report.display()
+                ));
+                Space::Ras
+            }
+        };
+        let units = match json.get("units").and_then(|s| s.as_str()) {
+            Some("mm") => Units::Mm,
+            Some("m") => Units::M,
+            other => {
+                return Err(err(format!(
+                    "{}: \"units\" is {other:?}; expected \"mm\" or \"m\"",
+                    report.display()
+                )));
+            }
+        };
+        let (mesh, fields) = match bs_mesh::io::read(&vtu).map_err(|e| err(e.to_string()))? {
+            bs_mesh::io::MeshFile::Volume(m, f) => (m, f),
+            bs_mesh::io::MeshFile::Surface(_) => {
+                return Err(err(format!("{}: holds a surface, not a volume mesh", vtu.display())));
+            }
+        };
+        if let Some((_, s)) = fields.field_data.iter().find(|(n, _)| n == "SPACE")
+            && Space::from_name(s) != Some(space)
+        {
+            return Err(err(format!(
+                "{} says SPACE = \"{s}\" but {} says \"{}\"; the two files come from \
+                 different runs",
+                vtu.display(),
+                report.display(),
+                space.name()
+            )));
+        }
+        let field = fields.point.iter().find(|f| f.name == "displacement").ok_or_else(|| {
+            err(format!("{}: no point data named \"displacement\"", vtu.display()))
+        })?;
+        if field.components != 3 || field.values.len() != 3 * mesh.nodes.len() {
+            return Err(err(format!(
+                "{}: \"displacement\" has {} components × {} values for {} nodes; expected 3 \
+                 per node",
+                vtu.display(),
+                field.components,
+                field.values.len() / field.components.max(1),
+                mesh.nodes.len()
+            )));
+        }
+        let displacements: Vec<Vector3<f64>> =
+            field.values.chunks_exact(3).map(|c| Vector3::new(c[0], c[1], c[2])).collect();
+        RunResult::new(dir, mesh, displacements, space, units).map(|mut r| {
+            r.notes.extend(notes);
+            r
+        })
+    }
+
+    /// A result from its parts (e.g. a run held in memory); checks that every node has a
+    /// finite displacement.
+    pub fn new(
+        dir: &Path,
+        mesh: Mesh,
+        displacements: Vec<Vector3<f64>>,
+        space: Space,
+        units: Units,
+    ) -> Result<RunResult, SceneError> {
+        let err = |message: String| SceneError::Result { dir: dir.to_path_buf(), message };
+        if displacements.len() != mesh.nodes.len() {
+            return Err(err(format!(
+                "{} displacements for {} nodes",
+                displacements.len(),
+                mesh.nodes.len()
+            )));
+        }
+        if let Some(n) = displacements.iter().position(|u| !u.iter().all(|x| x.is_finite())) {
+            return Err(err(format!("node {}: the displacement is not finite", mesh.node_ids[n])));
+        }
+        if mesh.elements.is_empty() {
+            return Err(err("the mesh has no elements".into()));
+        }
+        Ok(RunResult { dir: dir.to_path_buf(), mesh, displacements, space, units, notes: vec![] })
+    }
+}
+
+/// The inverse of a result's deformation on an image grid: for every voxel centre y inside
+/// the deformed mesh, the reference point X(y) (image frame, mm).
+#[derive(Debug, Clone)]
+pub struct InverseMap {
+    grid: Grid,
+    location: LatticeLocation,
+    /// Reference node positions in the image frame (mm).
+    reference: Vec<Point3<f64>>,
+}
+
+/// Axis-aligned extent of points, for messages.
+fn extent(points: impl Iterator<Item = Point3<f64>>) -> (Point3<f64>, Point3<f64>) {
+    points.fold(
+        (Point3::from([f64::INFINITY; 3]), Point3::from([f64::NEG_INFINITY; 3])),
+        |(lo, hi), p| (lo.inf(&p), hi.sup(&p)),
+    )
+}
+
+fn show(e: &(Point3<f64>, Point3<f64>)) -> String {
+    format!(
+        "x {:.1}…{:.1}, y {:.1}…{:.1}, z {:.1}…{:.1} mm",
+        e.0.x, e.1.x, e.0.y, e.1.y, e.0.z, e.1.z
+    )
+}
+
+impl InverseMap {
+    /// The inverse map of `result` on `grid`, an image (file `image`, for messages) whose
+    /// world frame is `image_space`. Refuses a result whose deformed mesh mostly lies
+    /// outside the image (fewer than half its nodes inside the image's extent).
+    pub fn new(
+        result: &RunResult,
+        grid: &Grid,
+        image_space: Space,
+        image: &Path,
+    ) -> Result<InverseMap, SceneError> {
+        let scale = result.units.metres() / 1e-3; // mesh unit → mm
+        let to_image = |p: Point3<f64>| result.space.convert_point(image_space, p * scale);
+        let reference: Vec<Point3<f64>> = result.mesh.nodes.iter().map(|&p| to_image(p)).collect();
+        let deformed: Vec<Point3<f64>> = result
+            .mesh
+            .nodes
+            .iter()
+            .zip(&result.displacements)
+            .map(|(&p, u)| to_image(p + u))
+            .collect();
+        // The image's extent: voxel centres widened by half a voxel.
+        let [nx, ny, nz] = grid.dims();
+        let corners = (0..8).map(|c| {
+            let pick = |bit: usize, n: usize| if c >> bit & 1 == 1 { n as f64 - 0.5 } else { -0.5 };
+            grid.world([pick(0, nx), pick(1, ny), pick(2, nz)])
+        });
+        let image_extent = extent(corners);
+        let inside = deformed
+            .iter()
+            .filter(|p| {
+                grid.voxel(p)
+                    .iter()
+                    .zip(grid.dims())
+                    .all(|(&v, n)| v >= -0.5 && v <= n as f64 - 0.5)
+            })
+            .count();
+        if 2 * inside < deformed.len() {
+            let mesh_extent = extent(deformed.iter().copied());
+            return Err(SceneError::Image {
+                file: image.to_path_buf(),
+                message: format!(
+                    "the deformed mesh of {} does not lie in this image: only {inside} of {} \
+                     nodes are inside it. Mesh ({} in the result, shown in the image's {} \
+                     frame, mm): {}; image ({} world frame): {}. Check the scene's space = \
+                     \"RAS\" | \"LPS\" and units, and that this is the image the mesh was made \
+                     from",
+                    result.dir.display(),
+                    deformed.len(),
+                    result.space.name(),
+                    image_space.name(),
+                    show(&mesh_extent),
+                    image_space.name(),
+                    show(&image_extent),
+                ),
+            });
+        }
+        let (tets, source) = tetrahedra(&result.mesh);
+        let ids: Vec<u64> = source.iter().map(|&e| result.mesh.element_ids[e]).collect();
+        let location =
+            LatticeLocation::new(&deformed, &tets, &ids, grid.dims(), grid.world_to_voxel())
+                .map_err(|e| SceneError::Result {
+                    dir: result.dir.clone(),
+                    message: format!("the deformed mesh cannot be searched: {e}"),
+                })?;
+        Ok(InverseMap { grid: grid.clone(), location, reference })
+    }
+
+    /// The grid.
+    pub fn grid(&self) -> &Grid {
+        &self.grid
+    }
+
+    /// Voxel centres inside the deformed mesh.
+    pub fn inside_count(&self) -> usize {
+        self.location.inside_count()
+    }
+
+    /// The reference point X(y) of voxel `n`'s centre y (image frame, mm), `None` outside the
+    /// deformed mesh.
+    pub fn reference_point(&self, n: usize) -> Option<Point3<f64>> {
+        let (t, w) = self.location.locate(n)?;
+        Some(self.location.interpolate(t, &w, &self.reference))
+    }
+
+    /// The pre-operative `image` (on this grid or any other in the same world frame)
+    /// resampled into the intra-operative configuration on this grid: trilinear at X(y) inside
+    /// the deformed mesh; every other voxel keeps the value of `keep` (the input on the same
+    /// grid), as does a voxel whose X(y) falls outside `image`.
+    pub fn warp(&self, image: &Volume<f32>, keep: &[f32]) -> Vec<f32> {
+        let mut out = keep.to_vec();
+        self.location.for_each_inside(&mut out, |_, t, w, o| {
+            let x = self.location.interpolate(t, &w, &self.reference);
+            if let Some(v) = bs_image::sample::trilinear(image, &x) {
+                *o = v;
+            }
+        });
+        out
+    }
+
+    /// [`InverseMap::warp`] for a labelmap: the nearest voxel's label.
+    pub fn warp_labels(&self, labels: &Volume<u32>, keep: &[u32]) -> Vec<u32> {
+        let mut out = keep.to_vec();
+        self.location.for_each_inside(&mut out, |_, t, w, o| {
+            let x = self.location.interpolate(t, &w, &self.reference);
+            if let Some(v) = bs_image::sample::nearest(labels, &x) {
+                *o = v;
+            }
+        });
+        out
+    }
+
+    /// The displacement field d(y) = X(y) − y on this grid (image frame, mm), zero outside
+    /// the deformed mesh; voxel order `i + nx (j + ny k)`.
+    pub fn field(&self) -> Vec<[f32; 3]> {
+        let mut out = vec![[0.0f32; 3]; self.grid.len()];
+        let [nx, ny, _] = self.grid.dims();
+        self.location.for_each_inside(&mut out, |n, t, w, o| {
+            let x = self.location.interpolate(t, &w, &self.reference);
+            let (i, j, k) = (n % nx, (n / nx) % ny, n / (nx * ny));
+            let y = self.grid.world([i as f64, j as f64, k as f64]);
+            let d = x - y;
+            *o = [d.x as f32, d.y as f32, d.z as f32];
+        });
+        out
+    }
+}
+
+/// What a warp or field export did, for the front end to print.
+#[derive(Debug, Clone)]
+pub struct Summary {
+    /// The file written.
+    pub out: PathBuf,
+    /// Voxels of the grid.
+    pub voxels: usize,
+    /// Voxels inside the deformed brain (mapped).
+    pub inside: usize,
+    /// Largest |d| over the grid (mm).
+    pub max_displacement: f64,
+    /// Seconds reading the result and the image.
+    pub read_seconds: f64,
+    /// Seconds computing the inverse map and resampling.
+    pub map_seconds: f64,
+    /// Seconds writing.
+    pub write_seconds: f64,
+    /// Notes from reading the result.
+    pub notes: Vec<String>,
+}
+
+fn image_error(e: bs_image::ImageError) -> SceneError {
+    match e {
+        bs_image::ImageError::Io { file, message }
+        | bs_image::ImageError::Invalid { file, message } => SceneError::Image { file, message },
+        bs_image::ImageError::Grid(message) => {
+            SceneError::Image { file: PathBuf::from("(image)"), message }
+        }
+    }
+}
+
+fn require_nifti_name(out: &Path) -> Result<(), SceneError> {
+    let name = out.file_name().and_then(|n| n.to_str()).unwrap_or("");
+    if name.ends_with(".nii") || name.ends_with(".nii.gz") {
+        Ok(())
+    } else {
+        Err(SceneError::Write {
+            path: out.to_path_buf(),
+            message: "the output must be a NIfTI file (.nii or .nii.gz)".into(),
+        })
+    }
+}
+
+/// `brainshift warp`: resamples the pre-operative image `image` (NIfTI) into the
+/// intra-operative configuration of the result in `result_dir` and writes it to `out` on
+/// the same grid and header (a labelmap with nearest-voxel sampling when `labels`). Nothing
+/// is written when an input is bad.
+pub fn warp_file(
+    result_dir: &Path,
+    image: &Path,
+    out: &Path,
+    labels: bool,
+) -> Result<Summary, SceneError> {
+    require_nifti_name(out)?;
+    let started = Instant::now();
+    let result = RunResult::load(result_dir)?;
+    if labels {
+        let (volume, header) =
+            bs_image::nifti::read_labels_with_header(image).map_err(image_error)?;
+        let read_seconds = started.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let map = InverseMap::new(&result, &volume.grid, Space::Ras, image)?;
+        let data = map.warp_labels(&volume, &volume.data);
+        let map_seconds = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let warped = Volume { grid: volume.grid.clone(), data };
+        bs_image::nifti::write_labels(out, &warped, Some(&header)).map_err(image_error)?;
+        Ok(Summary {
+            out: out.to_path_buf(),
+            voxels: volume.grid.len(),
+            inside: map.inside_count(),
+            max_displacement: max_norm(&result),
+            read_seconds,
+            map_seconds,
+            write_seconds: t.elapsed().as_secs_f64(),
+            notes: result.notes,
+        })
+    } else {
+        let img = bs_image::nifti::read_image(image).map_err(image_error)?;
+        let read_seconds = started.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let volume = &img.volume;
+        let map = InverseMap::new(&result, &volume.grid, Space::Ras, image)?;
+        let data = map.warp(volume, &volume.data);
+        let map_seconds = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let warped = Volume { grid: volume.grid.clone(), data };
+        bs_image::nifti::write_image(out, &warped, Some(&img.header)).map_err(image_error)?;
+        Ok(Summary {
+            out: out.to_path_buf(),
+            voxels: volume.grid.len(),
+            inside: map.inside_count(),
+            max_displacement: max_norm(&result),
+            read_seconds,
+            map_seconds,
+            write_seconds: t.elapsed().as_secs_f64(),
+            notes: result.notes,
+        })
+    }
+}
+
+fn max_norm(result: &RunResult) -> f64 {
+    let scale = result.units.metres() / 1e-3;
+    result.displacements.iter().map(|u| u.norm() * scale).fold(0.0, f64::max)
+}
+
+/// The format of a displacement-field output, from its name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FieldFormat {
+    /// `.nii` / `.nii.gz`: 5-D float32, intent DISPVECT, RAS vectors.
+    Nifti,
+    /// `.mha`: MetaImage, LPS origin, directions and vectors (ITK's frame).
+    MetaImage,
+}
+
+impl FieldFormat {
+    /// The format of `out`, or an error saying which names are accepted.
+    pub fn of(out: &Path) -> Result<FieldFormat, SceneError> {
+        let name = out.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        if name.ends_with(".nii") || name.ends_with(".nii.gz") {
+            Ok(FieldFormat::Nifti)
+        } else if name.ends_with(".mha") {
+            Ok(FieldFormat::MetaImage)
+        } else {
+            Err(SceneError::Write {
+                path: out.to_path_buf(),
+                message: "a displacement field is written as .nii, .nii.gz (RAS vectors) or \
+                          .mha (LPS, ITK's frame)"
+                    .into(),
+            })
+        }
+    }
+}
+
+/// `brainshift field`: the result's inverse map as a displacement field d(y) = X(y) − y on
+/// the grid of `reference` (NIfTI), written to `out` (.nii/.nii.gz or .mha).
+pub fn field_file(result_dir: &Path, reference: &Path, out: &Path) -> Result<Summary, SceneError> {
+    let format = FieldFormat::of(out)?;
+    let started = Instant::now();
+    let result = RunResult::load(result_dir)?;
+    let img = bs_image::nifti::read_image(reference).map_err(image_error)?;
+    let read_seconds = started.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let grid = &img.volume.grid;
+    let map = InverseMap::new(&result, grid, Space::Ras, reference)?;
+    let field = map.field();
+    let max_displacement = field
+        .iter()
+        .map(|d| d.iter().map(|&c| c as f64 * c as f64).sum::<f64>().sqrt())
+        .fold(0.0, f64::max);
+    let map_seconds = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    match format {
+        FieldFormat::Nifti => {
+            bs_image::nifti::write_displacement(out, grid, &field, Some(&img.header))
+        }
+        FieldFormat::MetaImage => bs_image::write_displacement_mha(out, grid, &field),
+    }
+    .map_err(image_error)?;
+    Ok(Summary {
+        out: out.to_path_buf(),
+        voxels: grid.len(),
+        inside: map.inside_count(),
+        max_displacement,
+        read_seconds,
+        map_seconds,
+        write_seconds: t.elapsed().as_secs_f64(),
+        notes: result.notes,
+    })
+}

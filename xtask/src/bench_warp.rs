@@ -1,0 +1,102 @@
+//! `cargo xtask bench warp`: the registration outputs on the demo case. Solves the MNI152
+//! scene once (not timed), then times, on the T1 template's full grid (197 × 233 × 189):
+//! reading the image (the baseline every warp pays), the inverse map (lattice location of
+//! every voxel in the deformed mesh) with the trilinear resampling, and the displacement
+//! field; and, for the ratio, the naive per-voxel `TetLocator::locate` on the deformed mesh
+//! over a 1-in-64 subsample of the voxels in the mesh's bounding box, scaled to all of them.
+//! Best of 3 runs each; the table goes to standard output.
+
+use std::path::Path;
+use std::time::Instant;
+
+use bs_image::Space;
+use bs_mesh::{Mesh, Point3};
+use bs_scene::registration::{InverseMap, RunResult};
+use bs_scene::{Prepared, Run};
+
+fn best<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {
+    let mut out = None;
+    let mut best = f64::INFINITY;
+    for _ in 0..runs {
+        let t = Instant::now();
+        let r = f();
+        best = best.min(t.elapsed().as_secs_f64());
+        out = Some(r);
+    }
+    (best, out.expect("at least one run"))
+}
+
+/// Runs the benchmark.
+pub fn main() -> Result<(), String> {
+    let root = crate::util::root();
+    let scene = root.join("fixtures/mni152/scene.toml");
+    let t1 = root.join("fixtures/mni152/t1.nii.gz");
+    let prepared = Prepared::load(&scene).map_err(|e| e.to_string())?;
+    let mesh: Mesh = prepared.mesh.clone();
+    let space = prepared.scene.space.space();
+    let units = prepared.scene.units;
+    let mut run = Run::prepare(prepared).map_err(|e| e.to_string())?;
+    let solved = run.solve(&mut |_| {}).map_err(|e| e.to_string())?;
+    let u = solved.solution.displacements.clone();
+    let result = RunResult::new(Path::new("(demo)"), mesh.clone(), u.clone(), space, units)
+        .map_err(|e| e.to_string())?;
+
+    let (read, img) = best(3, || bs_image::nifti::read_image(&t1));
+    let img = img.map_err(|e| e.to_string())?;
+    let v = &img.volume;
+    let (map_s, map) = best(3, || InverseMap::new(&result, &v.grid, Space::Ras, &t1));
+    let map = map.map_err(|e| e.to_string())?;
+    let (warp_s, warped) = best(3, || map.warp(v, &v.data));
+    let (field_s, field) = best(3, || map.field());
+    assert_eq!(warped.len(), field.len());
+
+    // Baseline: TetLocator on the deformed mesh, one voxel at a time.
+    let mut deformed = mesh.clone();
+    for (p, d) in deformed.nodes.iter_mut().zip(&u) {
+        *p += d;
+    }
+    let (lo, hi) = deformed.bounding_box().ok_or("empty mesh")?;
+    let a = v.grid.voxel(&lo).map(|x| x.floor().max(0.0) as usize);
+    let b = v.grid.voxel(&hi).map(|x| x.ceil().max(0.0) as usize);
+    let dims = v.grid.dims();
+    let range = |c: usize| (a[c]..=b[c].min(dims[c] - 1)).step_by(4);
+    let (locator_build, locator) = best(1, || bs_mesh::TetLocator::new(&deformed));
+    let locator = locator.map_err(|e| e.to_string())?;
+    let t = Instant::now();
+    let (mut sampled, mut inside) = (0usize, 0usize);
+    for k in range(2) {
+        for j in range(1) {
+            for i in range(0) {
+                let y = v.grid.world([i as f64, j as f64, k as f64]);
+                let loc = locator.locate(&Point3::from(y));
+                sampled += 1;
+                inside += usize::from(loc.distance == 0.0);
+            }
+        }
+    }
+    let naive = t.elapsed().as_secs_f64() * 64.0 + locator_build;
+
+    let threads = rayon::current_num_threads();
+    println!(
+        "bench warp: MNI152 T1 {:?} = {} voxels, {} inside the deformed brain, {threads} threads",
+        dims,
+        v.grid.len(),
+        map.inside_count()
+    );
+    println!("| step | seconds |");
+    println!("|---|---|");
+    println!("| read t1.nii.gz (baseline) | {read:.3} |");
+    println!("| inverse map (lattice location) | {map_s:.3} |");
+    println!("| warp (trilinear resampling) | {warp_s:.3} |");
+    println!("| field d(y) = X(y) - y | {field_s:.3} |");
+    println!(
+        "| map + warp | {:.3} ({:.2}x the image read) |",
+        map_s + warp_s,
+        (map_s + warp_s) / read
+    );
+    println!(
+        "| naive TetLocator per voxel, bbox, 1/64 sample x 64 (+ build {locator_build:.3}) | {naive:.1} ({:.0}x map + warp; {sampled} sampled, {inside} inside) |",
+        naive / (map_s + warp_s)
+    );
+    Ok(())
+}
