@@ -886,9 +886,12 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
     let (mut pdata, mut cdata) = (Vec::new(), Vec::new());
     let mut field_data = Vec::new();
     for a in arrays {
-        // Field data (e.g. Slicer's SPACE string) and arrays outside the grid's sections
-        // carry nothing the mesh needs.
-        if !matches!(a.section.as_str(), "Points" | "Cells" | "PointData" | "CellData") {
+        // Arrays outside the grid's sections and the dataset's field data carry nothing
+        // the mesh needs.
+        if !matches!(
+            a.section.as_str(),
+            "Points" | "Cells" | "PointData" | "CellData" | "FieldData"
+        ) {
             continue;
         }
         let ty = a.attrs.get("type").cloned().unwrap_or_default();
@@ -1066,9 +1069,9 @@ mod tests {
     }
 
     /// The SPACE string is written as VTK writes String field data (character codes and a
-    /// terminating 0) before the piece, and the file still reads back to the same mesh.
+    /// terminating 0) before the piece, and the file reads back to the same mesh and frame.
     #[test]
-    fn space_field_data_is_written_and_skipped_on_read() {
+    fn space_field_data_is_written_and_read_back() {
         let mesh = crate::structured::box_mesh(1, 1.0, true);
         let mut out = Vec::new();
         let fields =
@@ -1080,8 +1083,9 @@ mod tests {
         assert!(text.contains(
             "type=\"String\" Name=\"SPACE\" NumberOfTuples=\"1\" format=\"ascii\">\n82 65 83 0\n"
         ));
-        let (back, _) = read(&out, Path::new("t.vtu")).unwrap();
+        let (back, back_fields) = read(&out, Path::new("t.vtu")).unwrap();
         assert_eq!(back.nodes, mesh.nodes);
         assert_eq!(back.elements, mesh.elements);
+        assert_eq!(back_fields.field_data, fields.field_data);
     }
 }
