@@ -268,27 +268,15 @@ fn at_points(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sweep::{plan, run_row};
+    use crate::sweep::run_row;
 
     #[test]
     fn collect_reports_ok_failed_and_missing_rows_with_point_values() {
-        let d = std::env::temp_dir().join(format!("bs-sweep-collect-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        let base =
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/cube/uniaxial-t4.toml");
-        let s = d.join("sweep.toml");
-        std::fs::write(
-            &s,
-            format!(
-                "base = {:?}\n[[axis]]\nkey = \"boundary.3.displacement.z\"\n\
-                 values = [-0.1, -0.9, -0.05]\n",
-                base.to_str().unwrap()
-            ),
-        )
-        .unwrap();
-        let dir = d.join("sweep");
-        plan(&s, &dir).unwrap();
+        let dir = crate::sweep::planned_cube_sweep(
+            "collect",
+            "[[axis]]\nkey = \"boundary.3.displacement.z\"\nvalues = [-0.1, -0.9, -0.05]\n",
+        );
+        let d = dir.parent().unwrap().to_path_buf();
         run_row(&dir, 0, 1, &mut |_| {}).unwrap();
         assert!(run_row(&dir, 1, 1, &mut |_| {}).is_err());
         std::fs::write(d.join("points.csv"), "name,x,y,z\ntop,0.5,0.5,1.0\nbottom,0.5,0.5,0.0\n")

@@ -187,3 +187,18 @@ pub(crate) fn create_dir(path: &Path) -> Result<(), SweepError> {
         message: format!("cannot create the folder: {e}"),
     })
 }
+
+/// A sweep over the cube fixture planned into a fresh temporary folder, for the sweep
+/// modules' tests: `axes` is the sweep file's `[[axis]]` part. Returns the sweep folder.
+#[cfg(test)]
+pub(crate) fn planned_cube_sweep(name: &str, axes: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("bs-sweep-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    let base = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/cube/uniaxial-t4.toml");
+    let s = d.join("sweep.toml");
+    std::fs::write(&s, format!("base = {:?}\n{axes}", base.to_str().unwrap())).unwrap();
+    let dir = d.join("sweep");
+    plan(&s, &dir).unwrap();
+    dir
+}

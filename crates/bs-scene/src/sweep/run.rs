@@ -120,25 +120,12 @@ fn solve_into(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sweep::plan;
 
     fn planned(name: &str, values: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("bs-sweep-run-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        let base =
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/cube/uniaxial-t4.toml");
-        let s = d.join("sweep.toml");
-        std::fs::write(
-            &s,
-            format!(
-                "base = {:?}\n[[axis]]\nkey = \"boundary.3.displacement.z\"\nvalues = {values}\n",
-                base.to_str().unwrap()
-            ),
+        crate::sweep::planned_cube_sweep(
+            &format!("run-{name}"),
+            &format!("[[axis]]\nkey = \"boundary.3.displacement.z\"\nvalues = {values}\n"),
         )
-        .unwrap();
-        plan(&s, &d.join("sweep")).unwrap();
-        d.join("sweep")
     }
 
     #[test]

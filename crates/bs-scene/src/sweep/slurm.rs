@@ -133,27 +133,14 @@ pub fn emit_slurm(dir: &Path, opts: &SlurmOptions) -> Result<SlurmScript, SweepE
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sweep::plan;
 
     #[test]
     fn the_script_asks_for_every_row_with_the_estimated_memory() {
-        let d = std::env::temp_dir().join(format!("bs-sweep-slurm-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        let base =
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/cube/uniaxial-t4.toml");
-        let s = d.join("sweep.toml");
-        std::fs::write(
-            &s,
-            format!(
-                "base = {:?}\n[[axis]]\nkey = \"region.material.youngs_modulus\"\n\
-                 range = [1000.0, 5000.0]\nsamples = 5\n",
-                base.to_str().unwrap()
-            ),
-        )
-        .unwrap();
-        let dir = d.join("sweep");
-        plan(&s, &dir).unwrap();
+        let dir = crate::sweep::planned_cube_sweep(
+            "slurm",
+            "[[axis]]\nkey = \"region.material.youngs_modulus\"\n\
+             range = [1000.0, 5000.0]\nsamples = 5\n",
+        );
         let opts = SlurmOptions {
             max_parallel: Some(2),
             time: "00:10:00".into(),
@@ -188,7 +175,7 @@ mod tests {
             let e = emit_slurm(&dir, &bad).unwrap_err().to_string();
             assert!(e.contains(expect), "{e}");
         }
-        let e = emit_slurm(&d.join("nowhere"), &opts).unwrap_err().to_string();
+        let e = emit_slurm(&dir.parent().unwrap().join("nowhere"), &opts).unwrap_err().to_string();
         assert!(e.contains("cannot read manifest.json"), "{e}");
     }
 
