@@ -90,30 +90,24 @@ pub fn resolve_boundaries_with_notes(
         if b.nset.is_none() && b.surface.is_none() && b.landmarks.is_none() {
             notes.push(format!("[[boundary]] #{} {name}: {} boundary nodes", i + 1, nodes.len()));
         }
-        if let Some(file) = &b.surface {
-            let limit = b.max_distance.unwrap_or(mm_in_mesh_units(scene));
-            let moves = crate::loads::surface_displacements(sp, i, file, mesh, &nodes, limit)?;
-            notes.push(format!(
-                "[[boundary]] #{} surface {} on {name}: {} nodes moved to their closest points, \
-                 largest move {:.4} (max_distance {limit})",
-                i + 1,
-                file.display(),
-                nodes.len(),
-                moves.iter().map(|m| m.norm()).fold(0.0, f64::max)
-            ));
-            for (&n, d) in nodes.iter().zip(moves) {
-                for c in 0..3 {
-                    set(n, c, d[c], &source)?;
-                }
+        let measured = match (&b.surface, &b.landmarks) {
+            (Some(file), _) => {
+                let limit = b.max_distance.unwrap_or(mm_in_mesh_units(scene));
+                let moves = crate::loads::surface_displacements(sp, i, file, mesh, &nodes, limit)?;
+                let what = format!("moved to their closest points (max_distance {limit})");
+                Some(("surface", file, moves, what))
             }
-            continue;
-        }
-        if let Some(file) = &b.landmarks {
-            let limit = b.max_extrapolation.unwrap_or(mm_in_mesh_units(scene));
-            let moves = crate::loads::landmark_displacements(sp, i, file, mesh, &nodes, limit)?;
+            (None, Some(file)) => {
+                let limit = b.max_extrapolation.unwrap_or(mm_in_mesh_units(scene));
+                let moves = crate::loads::landmark_displacements(sp, i, file, mesh, &nodes, limit)?;
+                let what = format!("thin-plate spline (max_extrapolation {limit})");
+                Some(("landmarks", file, moves, what))
+            }
+            (None, None) => None,
+        };
+        if let Some((kind, file, moves, what)) = measured {
             notes.push(format!(
-                "[[boundary]] #{} landmarks {} on {name}: {} nodes, largest displacement {:.4} \
-                 (thin-plate spline; max_extrapolation {limit})",
+                "[[boundary]] #{} {kind} {} on {name}: {} nodes {what}, largest move {:.4}",
                 i + 1,
                 file.display(),
                 nodes.len(),

@@ -270,22 +270,25 @@ impl InverseMap {
     /// the deformed mesh; every other voxel keeps the value of `keep` (the input on the same
     /// grid), as does a voxel whose X(y) falls outside `image`.
     pub fn warp(&self, image: &Volume<f32>, keep: &[f32]) -> Vec<f32> {
-        let mut out = keep.to_vec();
-        self.location.for_each_inside(&mut out, |_, t, w, o| {
-            let x = self.location.interpolate(t, &w, &self.reference);
-            if let Some(v) = bs_image::sample::trilinear(image, &x) {
-                *o = v;
-            }
-        });
-        out
+        self.resample(keep, |x| bs_image::sample::trilinear(image, x))
     }
 
     /// [`InverseMap::warp`] for a labelmap: the nearest voxel's label.
     pub fn warp_labels(&self, labels: &Volume<u32>, keep: &[u32]) -> Vec<u32> {
+        self.resample(keep, |x| bs_image::sample::nearest(labels, x))
+    }
+
+    /// `keep` with every voxel inside the deformed mesh replaced by `sample` at its
+    /// reference position X(y) (where `sample` has a value).
+    fn resample<T: Copy + Send + Sync>(
+        &self,
+        keep: &[T],
+        sample: impl Fn(&nalgebra::Point3<f64>) -> Option<T> + Sync + Send,
+    ) -> Vec<T> {
         let mut out = keep.to_vec();
         self.location.for_each_inside(&mut out, |_, t, w, o| {
             let x = self.location.interpolate(t, &w, &self.reference);
-            if let Some(v) = bs_image::sample::nearest(labels, &x) {
+            if let Some(v) = sample(&x) {
                 *o = v;
             }
         });
