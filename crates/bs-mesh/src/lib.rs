@@ -56,7 +56,7 @@ pub mod tps;
 mod validate;
 
 pub use boundary::BoundarySurface;
-pub use locate::{LocateError, Location, TetLocator, transfer};
+pub use locate::{LocateError, Location, TetLocator, closest_on_triangle, transfer};
 pub use mesh::{Element, ElementKind, HEX_REFERENCE, Mesh};
 /// The linear algebra of every coordinate here, re-exported so that callers need no
 /// separate dependency.

@@ -192,8 +192,9 @@ impl TetLocator {
     }
 }
 
-/// The point of triangle abc closest to p (Voronoi regions of vertices, edges, face).
-fn closest_on_triangle(
+/// The point of triangle abc closest to p (Voronoi regions of vertices, edges, face;
+/// Ericson, *Real-Time Collision Detection*, 5.1.5).
+pub fn closest_on_triangle(
     p: &Point3<f64>,
     a: &Point3<f64>,
     b: &Point3<f64>,

@@ -89,7 +89,7 @@ fn inside_distance(s: &TriSurface, p: &Point3<f64>) -> f64 {
     let mut best = (f64::INFINITY, 0.0);
     for t in 0..s.triangles.len() {
         let [a, b, c] = s.corners(t);
-        let q = closest_on_triangle(p, &a, &b, &c);
+        let q = bs_mesh::closest_on_triangle(p, &a, &b, &c);
         let d = (p - q).norm();
         if d < best.0 - 1e-12 {
             let n = (b - a).cross(&(c - a));
@@ -97,44 +97,6 @@ fn inside_distance(s: &TriSurface, p: &Point3<f64>) -> f64 {
         }
     }
     best.0 * best.1
-}
-
-fn closest_on_triangle(
-    p: &Point3<f64>,
-    a: &Point3<f64>,
-    b: &Point3<f64>,
-    c: &Point3<f64>,
-) -> Point3<f64> {
-    // Ericson, Real-Time Collision Detection, 5.1.5.
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(&ap), ac.dot(&ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return *a;
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(&bp), ac.dot(&bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return *b;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return a + ab * (d1 / (d1 - d3));
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(&cp), ac.dot(&cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return *c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return a + ac * (d2 / (d2 - d6));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    }
-    let denom = 1.0 / (va + vb + vc);
-    a + ab * (vb * denom) + ac * (vc * denom)
 }
 
 fn assert_in_bound(m: &Meshed) {
