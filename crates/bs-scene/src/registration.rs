@@ -371,45 +371,51 @@ pub fn warp_file(
         let (volume, header) =
             bs_image::nifti::read_labels_with_header(image).map_err(image_error)?;
         let read_seconds = started.elapsed().as_secs_f64();
-        let t = Instant::now();
-        let map = InverseMap::new(&result, &volume.grid, Space::Ras, image)?;
-        let data = map.warp_labels(&volume, &volume.data);
-        let map_seconds = t.elapsed().as_secs_f64();
-        let t = Instant::now();
-        let warped = Volume { grid: volume.grid.clone(), data };
-        bs_image::nifti::write_labels(out, &warped, Some(&header)).map_err(image_error)?;
-        Ok(Summary {
-            out: out.to_path_buf(),
-            voxels: volume.grid.len(),
-            inside: map.inside_count(),
-            max_displacement: max_norm(&result),
+        resample_and_write(
+            &result,
+            &volume,
+            image,
+            out,
             read_seconds,
-            map_seconds,
-            write_seconds: t.elapsed().as_secs_f64(),
-            notes: result.notes,
-        })
+            InverseMap::warp_labels,
+            |v| bs_image::nifti::write_labels(out, v, Some(&header)),
+        )
     } else {
         let img = bs_image::nifti::read_image(image).map_err(image_error)?;
         let read_seconds = started.elapsed().as_secs_f64();
-        let t = Instant::now();
-        let volume = &img.volume;
-        let map = InverseMap::new(&result, &volume.grid, Space::Ras, image)?;
-        let data = map.warp(volume, &volume.data);
-        let map_seconds = t.elapsed().as_secs_f64();
-        let t = Instant::now();
-        let warped = Volume { grid: volume.grid.clone(), data };
-        bs_image::nifti::write_image(out, &warped, Some(&img.header)).map_err(image_error)?;
-        Ok(Summary {
-            out: out.to_path_buf(),
-            voxels: volume.grid.len(),
-            inside: map.inside_count(),
-            max_displacement: max_norm(&result),
-            read_seconds,
-            map_seconds,
-            write_seconds: t.elapsed().as_secs_f64(),
-            notes: result.notes,
+        resample_and_write(&result, &img.volume, image, out, read_seconds, InverseMap::warp, |v| {
+            bs_image::nifti::write_image(out, v, Some(&img.header))
         })
     }
+}
+
+/// The part of [`warp_file`] common to images and labelmaps: the inverse map on the image's
+/// grid, `resample` through it, `write` the volume, and the timings.
+fn resample_and_write<T: Copy>(
+    result: &RunResult,
+    volume: &Volume<T>,
+    image: &Path,
+    out: &Path,
+    read_seconds: f64,
+    resample: impl FnOnce(&InverseMap, &Volume<T>, &[T]) -> Vec<T>,
+    write: impl FnOnce(&Volume<T>) -> Result<(), bs_image::ImageError>,
+) -> Result<Summary, SceneError> {
+    let t = Instant::now();
+    let map = InverseMap::new(result, &volume.grid, Space::Ras, image)?;
+    let data = resample(&map, volume, &volume.data);
+    let map_seconds = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    write(&Volume { grid: volume.grid.clone(), data }).map_err(image_error)?;
+    Ok(Summary {
+        out: out.to_path_buf(),
+        voxels: volume.grid.len(),
+        inside: map.inside_count(),
+        max_displacement: max_norm(result),
+        read_seconds,
+        map_seconds,
+        write_seconds: t.elapsed().as_secs_f64(),
+        notes: result.notes.clone(),
+    })
 }
 
 fn max_norm(result: &RunResult) -> f64 {
