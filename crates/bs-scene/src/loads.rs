@@ -66,22 +66,15 @@ pub(crate) fn surface_displacements(
         }
         moves.push(best.1 - p);
     }
-    if !far.is_empty() {
-        far.sort_by(|a, b| b.1.total_cmp(&a.1));
-        return Err(SceneError::Set {
-            scene: sp.to_path_buf(),
-            key,
-            set: file.display().to_string(),
-            message: format!(
-                "{} of {} selected nodes are farther than max_distance = {max_distance} from the \
-                 surface: {} (distance, mesh units); check the surface's frame and units, or \
-                 select only the exposed nodes",
-                far.len(),
-                nodes.len(),
-                list(&far)
-            ),
-        });
-    }
+    too_far(
+        sp,
+        key,
+        file,
+        nodes.len(),
+        far,
+        &format!("are farther than max_distance = {max_distance} from the surface"),
+        "check the surface's frame and units, or select only the exposed nodes",
+    )?;
     Ok(moves)
 }
 
@@ -162,21 +155,44 @@ pub(crate) fn landmark_displacements(
         }
         out.push(tps.evaluate(&p));
     }
-    if !far.is_empty() {
-        far.sort_by(|a, b| b.1.total_cmp(&a.1));
-        return Err(SceneError::Set {
-            scene: sp.to_path_buf(),
-            key,
-            set: file.display().to_string(),
-            message: format!(
-                "{} of {} selected nodes lie farther than max_extrapolation = {max_extrapolation} \
-                 outside the landmarks' bounding box: {} (distance, mesh units); add landmarks \
-                 around them or select fewer nodes",
-                far.len(),
-                nodes.len(),
-                list(&far)
-            ),
-        });
-    }
+    too_far(
+        sp,
+        key,
+        file,
+        nodes.len(),
+        far,
+        &format!(
+            "lie farther than max_extrapolation = {max_extrapolation} outside the landmarks' \
+             bounding box"
+        ),
+        "add landmarks around them or select fewer nodes",
+    )?;
     Ok(out)
+}
+
+/// The error for selected nodes beyond a load's distance limit (`far`: node id and
+/// distance), the farthest first; `Ok` when there are none.
+fn too_far(
+    sp: &Path,
+    key: String,
+    file: &Path,
+    selected: usize,
+    mut far: Vec<(u64, f64)>,
+    what: &str,
+    fix: &str,
+) -> Result<(), SceneError> {
+    if far.is_empty() {
+        return Ok(());
+    }
+    far.sort_by(|a, b| b.1.total_cmp(&a.1));
+    Err(SceneError::Set {
+        scene: sp.to_path_buf(),
+        key,
+        set: file.display().to_string(),
+        message: format!(
+            "{} of {selected} selected nodes {what}: {} (distance, mesh units); {fix}",
+            far.len(),
+            list(&far)
+        ),
+    })
 }
