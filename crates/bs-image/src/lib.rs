@@ -10,6 +10,7 @@
 //! sees grids, voxels and points.
 
 mod error;
+pub mod extend;
 mod grid;
 mod mha;
 pub mod nifti;

@@ -15,7 +15,8 @@
 //!   [`TriSurface::require_closed_outward`].
 //! * [`TetLocator`]: point location in a tetrahedral mesh, to carry a nodal field onto the
 //!   nodes of another mesh ([`transfer`]); [`lattice`]: every point of a regular lattice
-//!   (an image's voxel centres) located at once by rasterising the tetrahedra, in parallel.
+//!   (an image's voxel centres) located at once by rasterising the tetrahedra, in parallel;
+//!   [`lattice_inside`]: the lattice points inside a closed surface (a skull cavity).
 //! * [`io`]: readers and writers for Abaqus `.inp`, Gmsh `.msh` (2.2 and 4.1, ASCII or binary), VTK
 //!   legacy, VTU, STL, OBJ and OFF. Every parse error names the file and line (or byte
 //!   offset) and what was expected.
@@ -45,6 +46,7 @@
 mod boundary;
 pub mod io;
 pub mod lattice;
+pub mod lattice_inside;
 mod locate;
 mod mesh;
 pub mod quality;
