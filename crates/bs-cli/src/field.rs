@@ -10,6 +10,6 @@ use bs_scene::SceneError;
 /// Runs `field` and prints what it did.
 pub fn run(reference: &Path, result: &Path, out: &Path) -> Result<ExitCode, SceneError> {
     let summary = bs_scene::registration::field_file(result, reference, out)?;
-    crate::warp::print_summary("mapped", &summary, "d(y) = X(y) - y, zero outside");
+    crate::warp::print_summary("mapped", &summary, "d(y) = X(y) - y, zero beyond the skull");
     Ok(ExitCode::SUCCESS)
 }

@@ -78,13 +78,18 @@ pub fn run(o: &MeshOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
     let done = mesh_to_scene(&o.labels, &o.out, &p, o.craniotomy)?;
     let f = &done.files;
     crate::emit(&format!(
-        "{}\nwrote {}, {}, {}, {}\n",
+        "{}\nwrote {}, {}, {}, {}, {}\n",
         done.meshed.report,
         f.brain_vtu.display(),
+        f.brain_vtk.display(),
         f.brain_inp.display(),
         f.skull.display(),
         f.scene.display()
     ));
+    // The last line: what the scene still needs before `check` and `run` accept it.
+    if let Some(missing) = &done.missing {
+        crate::emit(&format!("{missing}\n"));
+    }
     Ok(ExitCode::SUCCESS)
 }
 

@@ -166,7 +166,7 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
             "converged in {} {} ({:.3} s preparation, {:.3} s solve of which {:.3} s contact, \
              {:.3} s total): error estimate {:.2e} {u_unit}, max displacement {:.4} {u_unit}, {} \
              nodes in contact, max penetration before correction {:.2e} {u_unit}; verified: min J \
-             {:.3}, equilibrium residual {:.1e} (bound {:.1e})\nwrote {}, {}, {}\n",
+             {:.3}, equilibrium residual {:.1e} (bound {:.1e})\nwrote {}, {}, {}, {}{}\n",
             report.steps,
             if report.solver == "dr" { "steps" } else { "iterations" },
             report.prepare_seconds,
@@ -181,8 +181,10 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
             report.equilibrium_residual,
             report.equilibrium_bound,
             written.vtu.display(),
+            written.vtk.display(),
             written.csv.display(),
-            written.report.display()
+            written.report.display(),
+            written.skull.as_ref().map(|s| format!(", {}", s.display())).unwrap_or_default()
         ));
     }
     Ok(ExitCode::SUCCESS)

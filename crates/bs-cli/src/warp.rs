@@ -6,6 +6,7 @@ use std::path::Path;
 use std::process::ExitCode;
 
 use bs_scene::SceneError;
+use bs_scene::outside::{Boundary, OutsideReport};
 use bs_scene::registration::Summary;
 
 /// Runs `warp` and prints what it did.
@@ -31,4 +32,30 @@ pub(crate) fn print_summary(what: &str, s: &Summary, how: &str) {
         s.write_seconds,
         s.out.display()
     ));
+    if let Some(o) = &s.outside {
+        crate::emit(&format!("{}\n", outside_line(o)));
+    }
+}
+
+/// The line about the map between the deformed brain and the skull.
+pub(crate) fn outside_line(o: &OutsideReport) -> String {
+    let to = match o.boundary {
+        Boundary::Skull => "zero at the skull".to_string(),
+        Boundary::Band(w) => format!("no skull: zero {w:.1} mm from the deformed brain"),
+    };
+    let f = &o.folding;
+    format!(
+        "outside the brain: {} gap voxels extended harmonically ({to}; {} iterations, \
+         residual {:.1e}); det(I + grad d) min {:.3}, {} voxels <= 0{}",
+        o.gap_voxels,
+        o.iterations,
+        o.residual,
+        f.min,
+        f.non_positive,
+        if f.non_positive > 0 {
+            " (the map folds there: the brain moved farther than the gap it left allows)"
+        } else {
+            " (invertible)"
+        }
+    )
 }

@@ -59,11 +59,12 @@ const CHUNK: usize = 4096;
 
 /// Solves Δd = 0 on the voxels where `free` is true. `fixed(n)` gives the Dirichlet value of
 /// voxel `n` (called only for non-free neighbours of free voxels, possibly from several
-/// threads). Neighbours beyond the grid's edge contribute nothing (zero normal derivative).
+/// threads; a trait object, so that the solver is compiled, optimised, once here).
+/// Neighbours beyond the grid's edge contribute nothing (zero normal derivative).
 pub fn harmonic_extension(
     grid: &Grid,
     free: &[bool],
-    fixed: impl Fn(usize) -> [f64; 3] + Sync,
+    fixed: &(dyn Fn(usize) -> [f64; 3] + Sync),
     params: &ExtensionParams,
 ) -> Extended {
     assert_eq!(free.len(), grid.len(), "one flag per voxel");
@@ -211,7 +212,7 @@ pub struct Folding {
 /// det(I + ∇d) at each of `voxels`, by central differences of `d` (one-sided at the grid's
 /// edges) taken to world coordinates through the grid's affine; `d(n)` is the field at voxel
 /// `n` (world frame, mm).
-pub fn jacobian(grid: &Grid, voxels: &[u32], d: impl Fn(usize) -> [f64; 3] + Sync) -> Folding {
+pub fn jacobian(grid: &Grid, voxels: &[u32], d: &(dyn Fn(usize) -> [f64; 3] + Sync)) -> Folding {
     let [nx, ny, nz] = grid.dims();
     let dims = [nx, ny, nz];
     let stride = [1usize, nx, nx * ny];
@@ -260,7 +261,7 @@ mod tests {
         let ext = harmonic_extension(
             &grid,
             &free,
-            |n| if n % 10 == 0 { d0 } else { [0.0; 3] },
+            &|n| if n % 10 == 0 { d0 } else { [0.0; 3] },
             &ExtensionParams::default(),
         );
         assert_eq!(ext.voxels.len(), 8 * 12);
@@ -279,7 +280,7 @@ mod tests {
                 [0.0; 3]
             })
         };
-        let f = jacobian(&grid, &ext.voxels, field);
+        let f = jacobian(&grid, &ext.voxels, &field);
         assert_eq!(f.non_positive, 0);
         assert!((f.min - (1.0 - 4.0 / (9.0 * 0.7))).abs() < 1e-6, "{f:?}");
     }
@@ -290,10 +291,10 @@ mod tests {
         let grid = Grid::axis_aligned([10, 1, 1], [1.0; 3], [0.0; 3]).unwrap();
         let free: Vec<bool> = (0..10).map(|i| (1..=8).contains(&i)).collect();
         let d = |n: usize| if n == 0 { [10.0, 0.0, 0.0] } else { [0.0; 3] };
-        let ext = harmonic_extension(&grid, &free, d, &ExtensionParams::default());
+        let ext = harmonic_extension(&grid, &free, &d, &ExtensionParams::default());
         let field =
             |n: usize| ext.voxels.binary_search(&(n as u32)).map(|s| ext.values[s]).unwrap_or(d(n));
-        let f = jacobian(&grid, &ext.voxels, field);
+        let f = jacobian(&grid, &ext.voxels, &field);
         assert_eq!(f.non_positive, 8);
         assert!((f.min - (1.0 - 10.0 / 9.0)).abs() < 1e-6, "{f:?}");
     }
@@ -311,7 +312,7 @@ mod tests {
             let p = grid.world(idx(&grid, n));
             if r(n) < 5.0 { [p.y, -p.x, 0.5] } else { [0.0; 3] }
         };
-        let ext = harmonic_extension(&grid, &free, f, &ExtensionParams::default());
+        let ext = harmonic_extension(&grid, &free, &f, &ExtensionParams::default());
         let value =
             |n: usize| ext.voxels.binary_search(&(n as u32)).map(|s| ext.values[s]).unwrap_or(f(n));
         let h = grid.spacing();

@@ -71,3 +71,82 @@ pub fn nearest_at<T: Copy>(volume: &Volume<T>, ijk: [f64; 3]) -> Option<T> {
 pub fn nearest<T: Copy>(volume: &Volume<T>, p: &Point3<f64>) -> Option<T> {
     nearest_at(volume, volume.grid.voxel(p))
 }
+
+/// The label of the voxel nearest to world point `p` whose label is not in `excluded`
+/// (sorted), looking up to `radius` voxels away along each axis (the nearest by index
+/// distance, ties to the first in i-fastest order); 0 (background) when there is none,
+/// or when `p` lies outside the grid.
+pub fn nearest_excluding(
+    volume: &Volume<u32>,
+    p: &Point3<f64>,
+    excluded: &[u32],
+    radius: usize,
+) -> u32 {
+    let ijk = volume.grid.voxel(p);
+    let dims = volume.grid.dims();
+    let centre = ijk.map(|x| x.round());
+    if (0..3).any(|a| !(centre[a] >= 0.0 && centre[a] <= (dims[a] - 1) as f64)) {
+        return 0;
+    }
+    let c = centre.map(|x| x as isize);
+    let r = radius as isize;
+    let mut best: Option<(f64, u32)> = None;
+    for dk in -r..=r {
+        for dj in -r..=r {
+            for di in -r..=r {
+                let q = [c[0] + di, c[1] + dj, c[2] + dk];
+                if (0..3).any(|a| q[a] < 0 || q[a] >= dims[a] as isize) {
+                    continue;
+                }
+                let v = volume.at(q[0] as usize, q[1] as usize, q[2] as usize);
+                if excluded.binary_search(&v).is_ok() {
+                    continue;
+                }
+                let d2: f64 = (0..3).map(|a| (q[a] as f64 - ijk[a]).powi(2)).sum();
+                if best.is_none_or(|(b, _)| d2 < b) {
+                    best = Some((d2, v));
+                }
+            }
+        }
+    }
+    best.map_or(0, |(_, v)| v)
+}
+
+/// The labels (sorted) more than half of whose voxels are flagged in `inside`.
+pub fn labels_mostly_inside(labels: &[u32], inside: &[bool]) -> Vec<u32> {
+    let mut counts: std::collections::BTreeMap<u32, (usize, usize)> = Default::default();
+    for (&l, &i) in labels.iter().zip(inside) {
+        let e = counts.entry(l).or_default();
+        e.0 += usize::from(i);
+        e.1 += 1;
+    }
+    counts.into_iter().filter(|(_, (i, n))| 2 * i > *n).map(|(l, _)| l).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Grid;
+
+    #[test]
+    fn the_nearest_label_not_excluded_is_found_or_background() {
+        // Labels 1 for i < 4, 2 for 4 ≤ i < 6, 7 beyond, on a 10 × 3 × 3 grid.
+        let grid = Grid::axis_aligned([10, 3, 3], [1.0; 3], [0.0; 3]).unwrap();
+        let data = (0..90)
+            .map(|n| match n % 10 {
+                0..=3 => 1,
+                4 | 5 => 2,
+                _ => 7,
+            })
+            .collect();
+        let v = Volume { grid, data };
+        let at = |x: f64| Point3::new(x, 1.0, 1.0);
+        assert_eq!(nearest_excluding(&v, &at(2.2), &[], 3), 1);
+        assert_eq!(nearest_excluding(&v, &at(2.2), &[1], 3), 2);
+        assert_eq!(nearest_excluding(&v, &at(2.6), &[1, 2], 3), 7);
+        assert_eq!(nearest_excluding(&v, &at(0.0), &[1, 2], 3), 0, "7 is 6 voxels away");
+        assert_eq!(nearest_excluding(&v, &at(-3.0), &[], 3), 0, "outside the grid");
+        let inside: Vec<bool> = (0..90).map(|n| n % 10 < 5).collect();
+        assert_eq!(labels_mostly_inside(&v.data, &inside), vec![1]);
+    }
+}

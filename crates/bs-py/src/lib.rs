@@ -488,6 +488,8 @@ impl RunResult {
             .map_err(|e| scene_err(py, e))?;
         let d = PyDict::new(py);
         d.set_item("vtu", written.vtu)?;
+        d.set_item("vtk", written.vtk)?;
+        d.set_item("skull", written.skull)?;
         d.set_item("csv", written.csv)?;
         d.set_item("report", written.report)?;
         Ok(d)

@@ -1,6 +1,6 @@
 //! From a segmentation to a model (`brainshift mesh`): a labelmap is meshed by bs-meshgen
 //! and written as a scene folder — `brain.vtu` (world frame in its `SPACE` field data),
-//! `brain.inp`, `skull.off` and a `scene.toml` with default materials per region, the
+//! `brain.vtk` (the same for meshio, the frame in its title line), `brain.inp`, `skull.off` and a `scene.toml` with default materials per region, the
 //! `FIXED` brain stem and a commented craniotomy — every file written atomically.
 
 use std::fmt::Write as _;
@@ -17,8 +17,10 @@ use crate::SceneError;
 /// The files of a meshed scene folder.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SceneFiles {
-    /// `brain.vtu` (for viewing, with `SPACE` field data).
+    /// `brain.vtu` (for viewing in 3D Slicer and ParaView, with `SPACE` field data).
     pub brain_vtu: PathBuf,
+    /// `brain.vtk` (the same as legacy VTK, `SPACE=` in its title line: meshio reads it).
+    pub brain_vtk: PathBuf,
     /// `brain.inp` (what the scene reads).
     pub brain_inp: PathBuf,
     /// `skull.off`.
@@ -34,6 +36,21 @@ pub struct MeshedScene {
     pub meshed: Meshed,
     /// Where they were written.
     pub files: SceneFiles,
+    /// What the user must add before `brainshift check` accepts the scene (None: it runs
+    /// as written). A scene meshed without `--craniotomy` prescribes no load yet.
+    pub missing: Option<String>,
+}
+
+/// The step a scene written without its craniotomy load needs: `check` refuses a scene
+/// that moves nothing.
+pub fn missing_load(scene: &Path) -> String {
+    format!(
+        "next: {} prescribes no load yet, so `brainshift check` refuses it (nothing to \
+         compute): uncomment its [[boundary]] CRANIOTOMY block (and set the displacement, mm) \
+         or add your own load (displacement_file, surface, landmarks), or mesh again with \
+         --craniotomy",
+        scene.display()
+    )
 }
 
 /// Default material of an element set: Young's modulus (Pa) and Poisson's ratio. Tumours
@@ -64,7 +81,8 @@ pub fn mesh_to_scene(
     let meshed = bs_meshgen::mesh_labelmap(&volume, params)
         .map_err(|e| SceneError::Labelmap { file: labels.to_path_buf(), message: e.to_string() })?;
     let files = write_scene_folder(out, &meshed, params, labels, Space::Ras, craniotomy)?;
-    Ok(MeshedScene { meshed, files })
+    let missing = (!craniotomy).then(|| missing_load(&files.scene));
+    Ok(MeshedScene { meshed, files, missing })
 }
 
 /// Writes `brain.vtu`, `brain.inp`, `skull.off` and `scene.toml` into `out`.
@@ -83,6 +101,7 @@ pub fn write_scene_folder(
     std::fs::create_dir_all(out).map_err(|e| werr(out, &e))?;
     let files = SceneFiles {
         brain_vtu: out.join("brain.vtu"),
+        brain_vtk: out.join("brain.vtk"),
         brain_inp: out.join("brain.inp"),
         skull: out.join("skull.off"),
         scene: out.join("scene.toml"),
@@ -94,6 +113,13 @@ pub fn write_scene_folder(
         space.name(),
     )
     .map_err(|e| werr(&files.brain_vtu, &e))?;
+    bs_mesh::io::write_mesh_in_space(
+        &files.brain_vtk,
+        &meshed.mesh,
+        &Fields::default(),
+        space.name(),
+    )
+    .map_err(|e| werr(&files.brain_vtk, &e))?;
     bs_mesh::io::write_mesh(&files.brain_inp, &meshed.mesh, &Fields::default())
         .map_err(|e| werr(&files.brain_inp, &e))?;
     bs_mesh::io::write_surface(&files.skull, &meshed.skull).map_err(|e| werr(&files.skull, &e))?;
@@ -237,6 +263,14 @@ mod tests {
         assert_eq!(scene.regions.len(), 2);
         assert_eq!(scene.regions[1].elset, "TUMOUR");
         assert_eq!(scene.regions[1].material.youngs_modulus, Some(9000.0));
+        // As written (no load) `check` refuses the scene, and the meshing said what to add.
+        let e = crate::check::check(&done.files.scene).unwrap_err().to_string();
+        assert!(e.contains("nothing to compute") || e.contains("prescribes nothing"), "{e}");
+        let missing = done.missing.as_deref().unwrap();
+        assert!(missing.contains("CRANIOTOMY") && missing.contains("--craniotomy"), "{missing}");
+        // The legacy VTK copy carries the frame in its title line.
+        let vtk = std::fs::read_to_string(&done.files.brain_vtk).unwrap();
+        assert_eq!(vtk.lines().nth(1), Some("brainshift output. SPACE=RAS"));
         // With the commented craniotomy active the scene is complete: check it.
         let loaded = out.join("scene-craniotomy.toml");
         std::fs::write(&loaded, scene_text(&done.meshed, &params, &labels, Space::Ras, true))

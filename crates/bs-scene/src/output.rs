@@ -1,5 +1,8 @@
 //! Writing a verified result: result.vtu (displacement, in_contact; von Mises stress and J
-//! per element), displacements.csv and report.json, each written atomically (a temporary
+//! per element; the frame as `SPACE` String field data, which 3D Slicer reads) and the same
+//! as legacy result.vtk (the frame as `SPACE=` in its title line, for meshio and every VTK
+//! reader), displacements.csv, report.json and, with a skull, skull.off (the cavity the
+//! registration outputs extend the displacement to), each written atomically (a temporary
 //! file renamed into place), so an interrupted or failed run leaves no partial file.
 
 use std::path::{Path, PathBuf};
@@ -88,6 +91,10 @@ pub struct RunReport {
 pub struct Written {
     /// result.vtu.
     pub vtu: PathBuf,
+    /// result.vtk (the same, legacy VTK: meshio reads it).
+    pub vtk: PathBuf,
+    /// skull.off (the scene's skull, mesh frame and unit), when the scene has one.
+    pub skull: Option<PathBuf>,
     /// displacements.csv.
     pub csv: PathBuf,
     /// report.json.
@@ -172,10 +179,22 @@ pub fn write_outputs(
     };
     let written = Written {
         vtu: out.join("result.vtu"),
+        vtk: out.join("result.vtk"),
+        skull: p.skull.as_ref().map(|_| out.join("skull.off")),
         csv: out.join("displacements.csv"),
         report: out.join("report.json"),
     };
     bs_mesh::io::write_mesh(&written.vtu, &p.mesh, &fields).map_err(|e| io(&written.vtu)(&e))?;
+    bs_mesh::io::write_mesh(&written.vtk, &p.mesh, &fields).map_err(|e| io(&written.vtk)(&e))?;
+    if let (Some(path), Some(skull)) = (&written.skull, &p.skull) {
+        bs_mesh::io::write_surface(path, skull).map_err(|e| io(path)(&e))?;
+    } else {
+        // A skull from an earlier run into the same folder would be taken for this one's.
+        let stale = out.join("skull.off");
+        if stale.is_file() {
+            std::fs::remove_file(&stale).map_err(|e| io(&stale)(&e))?;
+        }
+    }
     write_atomic(&written.csv, |w| {
         writeln!(w, "node_id,ux,uy,uz")?;
         for (id, d) in p.mesh.node_ids.iter().zip(u) {

@@ -7,10 +7,12 @@
 //! outputs are made:
 //!
 //! * [`InverseMap::warp`]: the pre-operative image resampled into the intra-operative
-//!   configuration, `warped(y) = preop(X(y))` (trilinear; nearest for labelmaps); voxels
-//!   outside the deformed brain keep their value;
+//!   configuration, `warped(y) = preop(X(y))` (trilinear; nearest for labelmaps); between
+//!   the deformed brain and the skull X(y) = y + d(y) with d extended harmonically from the
+//!   brain to zero at the skull ([`crate::outside`]); voxels outside the skull cavity keep
+//!   their value, bit for bit;
 //! * [`InverseMap::field`]: the same map as a displacement field `d(y) = X(y) − y` (zero
-//!   outside the deformed brain), the convention of ITK's `DisplacementFieldTransform` (a
+//!   outside the skull cavity), the convention of ITK's `DisplacementFieldTransform` (a
 //!   resampling transform maps output points to input points), so that ITK or 3D Slicer
 //!   resampling the pre-operative image with it gives [`InverseMap::warp`]'s image.
 //!
@@ -22,10 +24,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use bs_image::{Grid, Space, Volume};
-use bs_mesh::lattice::{LatticeLocation, tetrahedra};
-use bs_mesh::{Mesh, Point3, Vector3};
+use bs_mesh::lattice::{LatticeLocation, OUTSIDE, tetrahedra};
+use bs_mesh::{Mesh, Point3, TriSurface, Vector3};
 
 use crate::SceneError;
+use crate::outside::{Outside, OutsideReport};
 use crate::scene::Units;
 
 /// A run's result read back from its directory.
@@ -41,13 +44,17 @@ pub struct RunResult {
     pub space: Space,
     /// The length unit of the mesh.
     pub units: Units,
+    /// The skull cavity of the scene (closed, outward), in the mesh's frame and unit:
+    /// `skull.off` of the result directory. None: the scene had no skull.
+    pub skull: Option<TriSurface>,
     /// Things worth knowing (e.g. a report written before frames were recorded).
     pub notes: Vec<String>,
 }
 
 impl RunResult {
-    /// Reads `dir/result.vtu` (mesh and `displacement` point data) and `dir/report.json`
-    /// (`space`, `units`), as `brainshift run` writes them.
+    /// Reads `dir/result.vtu` (mesh and `displacement` point data), `dir/report.json`
+    /// (`space`, `units`) and, when there, `dir/skull.off` (the scene's skull), as
+    /// `brainshift run` writes them.
     pub fn load(dir: &Path) -> Result<RunResult, SceneError> {
         let err = |message: String| SceneError::Result { dir: dir.to_path_buf(), message };
         let vtu = dir.join("result.vtu");
@@ -123,8 +130,24 @@ impl RunResult {
         }
         let displacements: Vec<Vector3<f64>> =
             field.values.chunks_exact(3).map(|c| Vector3::new(c[0], c[1], c[2])).collect();
+        let skull_file = dir.join("skull.off");
+        let skull = if skull_file.is_file() {
+            Some(bs_mesh::io::read_surface(&skull_file).map_err(|e| err(e.to_string()))?)
+        } else {
+            if json.get("algorithm").and_then(|a| a.as_str()).is_some_and(|a| a != "none") {
+                notes.push(format!(
+                    "{} names a contact algorithm but {} is missing (a result written before \
+                     the skull was kept with it): the map outside the brain decays over a band \
+                     instead of stopping at the skull; re-run the scene to keep its skull",
+                    report.display(),
+                    skull_file.display()
+                ));
+            }
+            None
+        };
         RunResult::new(dir, mesh, displacements, space, units).map(|mut r| {
             r.notes.extend(notes);
+            r.skull = skull;
             r
         })
     }
@@ -152,18 +175,53 @@ impl RunResult {
         if mesh.elements.is_empty() {
             return Err(err("the mesh has no elements".into()));
         }
-        Ok(RunResult { dir: dir.to_path_buf(), mesh, displacements, space, units, notes: vec![] })
+        Ok(RunResult {
+            dir: dir.to_path_buf(),
+            mesh,
+            displacements,
+            space,
+            units,
+            skull: None,
+            notes: vec![],
+        })
+    }
+
+    /// The same result with the scene's skull (mesh frame and unit).
+    pub fn with_skull(mut self, skull: Option<TriSurface>) -> RunResult {
+        self.skull = skull;
+        self
+    }
+
+    /// Largest nodal displacement (mm).
+    pub fn max_displacement_mm(&self) -> f64 {
+        let scale = self.units.metres() / 1e-3;
+        self.displacements.iter().map(|u| u.norm() * scale).fold(0.0, f64::max)
     }
 }
 
 /// The inverse of a result's deformation on an image grid: for every voxel centre y inside
-/// the deformed mesh, the reference point X(y) (image frame, mm).
+/// the deformed mesh, the reference point X(y) (image frame, mm); between the deformed
+/// brain and the skull, y + d(y) with d the harmonic extension ([`crate::outside`]).
 #[derive(Debug, Clone)]
 pub struct InverseMap {
     grid: Grid,
     location: LatticeLocation,
     /// Reference node positions in the image frame (mm).
     reference: Vec<Point3<f64>>,
+    /// The tetrahedra of the mesh (hexes split) with their element ids.
+    tets: Vec<[usize; 4]>,
+    ids: Vec<u64>,
+    /// The extension outside the deformed brain (None: identity there).
+    outside: Option<Outside>,
+}
+
+/// What the map does outside the deformed brain.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutsideChoice {
+    /// The harmonic extension to the skull (or over a band without one).
+    Extend,
+    /// The identity (d = 0): the map of earlier versions, kept to measure against.
+    Identity,
 }
 
 /// Axis-aligned extent of points, for messages.
@@ -190,6 +248,17 @@ impl InverseMap {
         grid: &Grid,
         image_space: Space,
         image: &Path,
+    ) -> Result<InverseMap, SceneError> {
+        InverseMap::with_outside(result, grid, image_space, image, OutsideChoice::Extend)
+    }
+
+    /// [`InverseMap::new`] with the map outside the deformed brain chosen.
+    pub fn with_outside(
+        result: &RunResult,
+        grid: &Grid,
+        image_space: Space,
+        image: &Path,
+        choice: OutsideChoice,
     ) -> Result<InverseMap, SceneError> {
         let scale = result.units.metres() / 1e-3; // mesh unit → mm
         let to_image = |p: Point3<f64>| result.space.convert_point(image_space, p * scale);
@@ -245,7 +314,61 @@ impl InverseMap {
                     dir: result.dir.clone(),
                     message: format!("the deformed mesh cannot be searched: {e}"),
                 })?;
-        Ok(InverseMap { grid: grid.clone(), location, reference })
+        let mut map =
+            InverseMap { grid: grid.clone(), location, reference, tets, ids, outside: None };
+        if choice == OutsideChoice::Extend {
+            let cavity = result.skull.as_ref().map(|s| {
+                let v: Vec<Point3<f64>> = s.vertices.iter().map(|&p| to_image(p)).collect();
+                bs_mesh::lattice_inside::inside_closed_surface(
+                    &v,
+                    &s.triangles,
+                    grid.dims(),
+                    grid.world_to_voxel(),
+                )
+            });
+            let in_brain: Vec<bool> = map.location.owners().iter().map(|&o| o != OUTSIDE).collect();
+            let outside = crate::outside::extend(
+                grid,
+                &in_brain,
+                cavity.as_deref(),
+                result.max_displacement_mm(),
+                |n| map.exact_displacement(n).unwrap_or([0.0; 3]),
+            );
+            map.outside = Some(outside);
+        }
+        Ok(map)
+    }
+
+    /// d(y) = X(y) − y at voxel `n` inside the deformed mesh (the exact inverse).
+    fn exact_displacement(&self, n: usize) -> Option<[f64; 3]> {
+        let x = self.reference_point(n)?;
+        let d = x - self.voxel_centre(n);
+        Some([d.x, d.y, d.z])
+    }
+
+    fn voxel_centre(&self, n: usize) -> Point3<f64> {
+        let [nx, ny, _] = self.grid.dims();
+        self.grid.world([(n % nx) as f64, ((n / nx) % ny) as f64, (n / (nx * ny)) as f64])
+    }
+
+    /// What the extension outside the deformed brain did (None: identity there).
+    pub fn outside_report(&self) -> Option<OutsideReport> {
+        self.outside.as_ref().map(|o| o.report)
+    }
+
+    /// Voxels mapped by the extension (between the deformed brain and the skull).
+    pub fn gap_voxels(&self) -> &[u32] {
+        self.outside.as_ref().map_or(&[], |o| &o.voxels)
+    }
+
+    /// The point X(y) = y + d(y) a voxel samples: the exact inverse inside the deformed
+    /// mesh, the extension in the gap, `None` elsewhere (the identity).
+    pub fn mapped_point(&self, n: usize) -> Option<Point3<f64>> {
+        if let Some(x) = self.reference_point(n) {
+            return Some(x);
+        }
+        let d = self.outside.as_ref()?.get(n)?;
+        Some(self.voxel_centre(n) + Vector3::from(d))
     }
 
     /// The grid.
@@ -258,8 +381,8 @@ impl InverseMap {
         self.location.inside_count()
     }
 
-    /// The reference point X(y) of voxel `n`'s centre y (image frame, mm), `None` outside the
-    /// deformed mesh.
+    /// The reference point X(y) of voxel `n`'s centre y (image frame, mm) by the exact
+    /// inverse of the finite-element map, `None` outside the deformed mesh.
     pub fn reference_point(&self, n: usize) -> Option<Point3<f64>> {
         let (t, w) = self.location.locate(n)?;
         Some(self.location.interpolate(t, &w, &self.reference))
@@ -267,15 +390,49 @@ impl InverseMap {
 
     /// The pre-operative `image` (on this grid or any other in the same world frame)
     /// resampled into the intra-operative configuration on this grid: trilinear at X(y) inside
-    /// the deformed mesh; every other voxel keeps the value of `keep` (the input on the same
-    /// grid), as does a voxel whose X(y) falls outside `image`.
+    /// the deformed mesh and in the gap to the skull; every other voxel keeps the value of
+    /// `keep` (the input on the same grid), as does a voxel whose X(y) falls outside `image`.
     pub fn warp(&self, image: &Volume<f32>, keep: &[f32]) -> Vec<f32> {
-        self.resample(keep, |x| bs_image::sample::trilinear(image, x))
+        let sample = |x: &Point3<f64>| bs_image::sample::trilinear(image, x);
+        let mut out = self.resample(keep, sample);
+        self.resample_gap(&mut out, |_, x| sample(x));
+        out
     }
 
-    /// [`InverseMap::warp`] for a labelmap: the nearest voxel's label.
+    /// [`InverseMap::warp`] for a labelmap: the nearest voxel's label. In the gap (the
+    /// space between the deformed brain and the skull) a label of the brain is never used:
+    /// a label is the brain's when most of its voxels lie inside the pre-operative mesh,
+    /// and a gap voxel whose X(y) falls on one takes the nearest label at X(y) that is not
+    /// (within [`LABEL_SEARCH_VOXELS`] voxels), else 0 (background).
     pub fn warp_labels(&self, labels: &Volume<u32>, keep: &[u32]) -> Vec<u32> {
-        self.resample(keep, |x| bs_image::sample::nearest(labels, x))
+        let mut out = self.resample(keep, |x| bs_image::sample::nearest(labels, x));
+        if self.outside.is_some() {
+            let brain = self.brain_labels(labels);
+            self.resample_gap(&mut out, |_, x| {
+                Some(bs_image::sample::nearest_excluding(labels, x, &brain, LABEL_SEARCH_VOXELS))
+            });
+        }
+        out
+    }
+
+    /// The labels most of whose voxels lie inside the pre-operative (reference) mesh.
+    fn brain_labels(&self, labels: &Volume<u32>) -> Vec<u32> {
+        let reference = LatticeLocation::new(
+            &self.reference,
+            &self.tets,
+            &self.ids,
+            labels.grid.dims(),
+            labels.grid.world_to_voxel(),
+        );
+        match reference {
+            Ok(r) => {
+                let inside: Vec<bool> = r.owners().iter().map(|&o| o != OUTSIDE).collect();
+                bs_image::sample::labels_mostly_inside(&labels.data, &inside)
+            }
+            // The deformed mesh was searchable, so the reference one is (a node moved onto
+            // another would have failed verification): nothing to exclude otherwise.
+            Err(_) => Vec::new(),
+        }
     }
 
     /// `keep` with every voxel inside the deformed mesh replaced by `sample` at its
@@ -295,21 +452,43 @@ impl InverseMap {
         out
     }
 
-    /// The displacement field d(y) = X(y) − y on this grid (image frame, mm), zero outside
-    /// the deformed mesh; voxel order `i + nx (j + ny k)`.
+    /// `out` with every gap voxel replaced by `sample(n, y + d(y))` (where it has a value).
+    fn resample_gap<T: Copy>(
+        &self,
+        out: &mut [T],
+        sample: impl Fn(usize, &Point3<f64>) -> Option<T>,
+    ) {
+        let Some(o) = &self.outside else { return };
+        for (&n, d) in o.voxels.iter().zip(&o.values) {
+            let n = n as usize;
+            if let Some(v) = sample(n, &(self.voxel_centre(n) + Vector3::from(*d))) {
+                out[n] = v;
+            }
+        }
+    }
+
+    /// The displacement field d(y) = X(y) − y on this grid (image frame, mm): the exact
+    /// inverse inside the deformed mesh, the extension in the gap, zero beyond the skull;
+    /// voxel order `i + nx (j + ny k)`.
     pub fn field(&self) -> Vec<[f32; 3]> {
         let mut out = vec![[0.0f32; 3]; self.grid.len()];
-        let [nx, ny, _] = self.grid.dims();
         self.location.for_each_inside(&mut out, |n, t, w, o| {
             let x = self.location.interpolate(t, &w, &self.reference);
-            let (i, j, k) = (n % nx, (n / nx) % ny, n / (nx * ny));
-            let y = self.grid.world([i as f64, j as f64, k as f64]);
-            let d = x - y;
+            let d = x - self.voxel_centre(n);
             *o = [d.x as f32, d.y as f32, d.z as f32];
         });
+        if let Some(o) = &self.outside {
+            for (&n, d) in o.voxels.iter().zip(&o.values) {
+                out[n as usize] = d.map(|c| c as f32);
+            }
+        }
         out
     }
 }
+
+/// How far (voxels, per axis) a gap voxel of a warped labelmap looks for a label that is
+/// not the brain's before it takes 0.
+pub const LABEL_SEARCH_VOXELS: usize = 3;
 
 /// What a warp or field export did, for the front end to print.
 #[derive(Debug, Clone)]
@@ -328,6 +507,8 @@ pub struct Summary {
     pub map_seconds: f64,
     /// Seconds writing.
     pub write_seconds: f64,
+    /// The map outside the deformed brain (None: identity there).
+    pub outside: Option<OutsideReport>,
     /// Notes from reading the result.
     pub notes: Vec<String>,
 }
@@ -410,17 +591,13 @@ fn resample_and_write<T: Copy>(
         out: out.to_path_buf(),
         voxels: volume.grid.len(),
         inside: map.inside_count(),
-        max_displacement: max_norm(result),
+        max_displacement: result.max_displacement_mm(),
         read_seconds,
         map_seconds,
         write_seconds: t.elapsed().as_secs_f64(),
+        outside: map.outside_report(),
         notes: result.notes.clone(),
     })
-}
-
-fn max_norm(result: &RunResult) -> f64 {
-    let scale = result.units.metres() / 1e-3;
-    result.displacements.iter().map(|u| u.norm() * scale).fold(0.0, f64::max)
 }
 
 /// The format of a displacement-field output, from its name.
@@ -484,6 +661,7 @@ pub fn field_file(result_dir: &Path, reference: &Path, out: &Path) -> Result<Sum
         read_seconds,
         map_seconds,
         write_seconds: t.elapsed().as_secs_f64(),
+        outside: map.outside_report(),
         notes: result.notes,
     })
 }

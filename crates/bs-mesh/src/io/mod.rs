@@ -173,8 +173,9 @@ pub struct Fields {
     /// Per-element arrays.
     pub cell: Vec<Field>,
     /// Named strings about the whole dataset (VTU `FieldData` String arrays, e.g. `SPACE`
-    /// = `RAS`, the anatomical frame of the coordinates). Written and read by the VTU format
-    /// only.
+    /// = `RAS`, the anatomical frame of the coordinates). Written and read by the VTU format;
+    /// the legacy VTK format holds `SPACE` alone, as `SPACE=RAS` in its title line (3D
+    /// Slicer's convention for legacy files).
     pub field_data: Vec<(String, String)>,
 }
 
@@ -269,7 +270,8 @@ pub fn write_mesh(path: &Path, mesh: &Mesh, fields: &Fields) -> Result<(), MeshI
 }
 
 /// Like [`write_mesh`], and a `.vtu` also carries the field-data string `SPACE` = `space`
-/// (e.g. `"RAS"`), the coordinate frame 3D Slicer reads; other formats have no place for it.
+/// (e.g. `"RAS"`), a `.vtk` `SPACE=RAS` in its title line: the coordinate frame 3D Slicer
+/// reads from each; `.inp` has no place for it.
 pub fn write_mesh_in_space(
     path: &Path,
     mesh: &Mesh,

@@ -9,6 +9,11 @@
 //! [`Fields`]. Cells are handled as in [`vtu`](super::vtu): tetrahedra and hexahedra kept,
 //! surface and line cells skipped, other volume cells an error naming the cell.
 //!
+//! The frame of the coordinates travels in the title line as 3D Slicer writes and reads it:
+//! `SPACE=RAS` or `SPACE=LPS` anywhere in the line (Slicer's model storage node looks for it
+//! there in legacy files, and for a `SPACE` String field-data array in XML ones). The reader
+//! returns it as the field-data string `SPACE`, as the VTU reader does.
+//!
 //! Writer: version 4.2 ASCII (readable by every VTK, ParaView and meshio), classic `CELLS`,
 //! coordinates and field values in Rust's shortest round-trip notation so that a
 //! write→read round trip is exact. Ids and sets are written as `FIELD` arrays (`node_id` and
@@ -284,7 +289,11 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
             "expected '# vtk DataFile Version x.y' on the first line: not a legacy VTK file",
         ));
     }
-    c.rest_of_line(); // title
+    let title = c.rest_of_line();
+    let space = title.split_whitespace().find_map(|w| w.strip_prefix("SPACE=")).and_then(|v| {
+        let v = v.trim_end_matches([',', ';', '.']);
+        ["RAS", "LPS"].into_iter().find(|s| v.eq_ignore_ascii_case(s))
+    });
     let fmt_line = c.line;
     let fmt = c.rest_of_line().trim().to_ascii_uppercase();
     c.binary = match fmt.as_str() {
@@ -519,7 +528,11 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
             ));
         }
     }
-    assemble(file, npoints, &pts, &cells, pdata, cdata)
+    let (mesh, mut fields) = assemble(file, npoints, &pts, &cells, pdata, cdata)?;
+    if let Some(space) = space {
+        fields.field_data.push(("SPACE".into(), space.into()));
+    }
+    Ok((mesh, fields))
 }
 
 fn ints(d: Data, c: &Cursor<'_>, line: usize, what: &str) -> Result<Vec<i64>, ParseError> {
@@ -534,7 +547,16 @@ pub fn write(w: &mut dyn Write, mesh: &Mesh, fields: &Fields) -> io::Result<()> 
     check_for_write(mesh, fields)?;
     let (nn, ne) = (mesh.nodes.len(), mesh.elements.len());
     writeln!(w, "# vtk DataFile Version 4.2")?;
-    writeln!(w, "written by brainshift")?;
+    // The title line: 3D Slicer reads the frame from `SPACE=` there (a line of at most 256
+    // characters).
+    match fields.field_data.iter().find(|(name, _)| name == "SPACE") {
+        Some((_, space))
+            if space.len() <= 16 && space.chars().all(|c| c.is_ascii_alphanumeric()) =>
+        {
+            writeln!(w, "brainshift output. SPACE={space}")?
+        }
+        _ => writeln!(w, "brainshift output")?,
+    }
     writeln!(w, "ASCII")?;
     writeln!(w, "DATASET UNSTRUCTURED_GRID")?;
     writeln!(w, "POINTS {nn} double")?;
@@ -608,6 +630,23 @@ pub fn write(w: &mut dyn Write, mesh: &Mesh, fields: &Fields) -> io::Result<()> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_frame_travels_in_the_title_line_as_slicer_reads_it() {
+        let mesh = crate::structured::box_mesh(1, 1.0, true);
+        let fields =
+            Fields { field_data: vec![("SPACE".into(), "LPS".into())], ..Fields::default() };
+        let mut bytes = Vec::new();
+        write(&mut bytes, &mesh, &fields).unwrap();
+        let text = String::from_utf8(bytes.clone()).unwrap();
+        assert_eq!(text.lines().nth(1), Some("brainshift output. SPACE=LPS"));
+        let (_, back) = read(&bytes, Path::new("t.vtk")).unwrap();
+        assert_eq!(back.field_data, fields.field_data);
+        // Slicer's own header ("3D Slicer output. SPACE=RAS") reads the same way.
+        let slicer = text.replace("brainshift output. SPACE=LPS", "3D Slicer output. SPACE=RAS");
+        let (_, back) = read(slicer.as_bytes(), Path::new("t.vtk")).unwrap();
+        assert_eq!(back.field_data, vec![("SPACE".to_string(), "RAS".to_string())]);
+    }
 
     #[test]
     fn names_round_trip_through_percent_encoding() {

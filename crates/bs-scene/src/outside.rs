@@ -1,0 +1,117 @@
+//! The map outside the deformed brain: where the brain moved away from the skull (or
+//! towards it), a voxel must sample what was there before — fluid between the old brain
+//! surface and the skull — not the old cortex. The displacement field d(y) = X(y) − y is
+//! extended harmonically from the brain to the skull on the image's own grid
+//! (`bs_image::extend`):
+//!
+//! * Dirichlet data: inside the deformed brain, the exact inverse of the finite-element map
+//!   (unchanged); outside the skull cavity, zero (the skull is rigid, bone and scalp do not
+//!   move). The skull cavity is the inside of the closed skull surface rasterised on the
+//!   grid (`bs_mesh::lattice_inside`).
+//! * Unknowns: the voxels inside the cavity and outside the deformed brain (the gap).
+//! * A scene without a skull: the gap is a band around the deformed brain, [`band_width`]
+//!   wide (twice the largest displacement, at least [`MIN_BAND_MM`]), beyond which d = 0:
+//!   the extension decays to zero over that distance.
+//!
+//! Why the grid and not a mesh of the gap: the grid is where both outputs live (the warp
+//! samples at y + d(y), the field *is* d on the grid), it needs no second mesher conforming
+//! to an arbitrary brain surface and skull, and the gap between the brain's voxels and the
+//! skull's is solved in tens of milliseconds.
+//!
+//! In one dimension the harmonic extension is the linear stretch of the new gap onto the old
+//! one, monotone while the old gap has width (dX/dy = gap_old / gap_new > 0). Where contact
+//! closes the gap there are no gap voxels: d jumps from the brain's (frictionless, sliding)
+//! displacement to zero at the rigid skull, within a voxel. Where a brain that touched the
+//! skull moves away, the old gap had zero width: the vacated voxels all sample the old
+//! surface layer (det(I + ∇d) → 0). [`Folding`] reports det(I + ∇d) on the gap voxels: the
+//! count of voxels where it is ≤ 0 (the map folds) and its minimum.
+
+use bs_image::Grid;
+use bs_image::extend::{ExtensionParams, Folding, harmonic_extension, jacobian};
+
+/// The narrowest band of a skull-free extension (mm).
+pub const MIN_BAND_MM: f64 = 10.0;
+
+/// The width of a skull-free extension's band for a largest displacement `max_u` (mm):
+/// 2 |u|max, at least [`MIN_BAND_MM`], so that in one dimension d falls by at most half a
+/// millimetre per millimetre and the map stays monotone.
+pub fn band_width(max_u: f64) -> f64 {
+    (2.0 * max_u).max(MIN_BAND_MM)
+}
+
+/// Where the extension stops.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Boundary {
+    /// At the skull cavity's surface (d = 0 outside it).
+    Skull,
+    /// At this distance (mm) from the deformed brain (no skull in the scene).
+    Band(f64),
+}
+
+/// What the extension did, for the front ends.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OutsideReport {
+    /// Where it stops.
+    pub boundary: Boundary,
+    /// Voxels solved for (inside the cavity or band, outside the deformed brain).
+    pub gap_voxels: usize,
+    /// Conjugate-gradient iterations.
+    pub iterations: usize,
+    /// Relative residual reached.
+    pub residual: f64,
+    /// det(I + ∇d) on the gap voxels.
+    pub folding: Folding,
+}
+
+/// The extended field on the gap voxels.
+#[derive(Debug, Clone)]
+pub struct Outside {
+    /// Gap voxels, ascending linear indices.
+    pub voxels: Vec<u32>,
+    /// d(y) there (image frame, mm).
+    pub values: Vec<[f64; 3]>,
+    /// What was done.
+    pub report: OutsideReport,
+}
+
+impl Outside {
+    /// The extended d at voxel `n` if it is a gap voxel.
+    pub fn get(&self, n: usize) -> Option<[f64; 3]> {
+        self.voxels.binary_search(&(n as u32)).ok().map(|s| self.values[s])
+    }
+}
+
+/// Extends `exact` (d on the voxels where `in_brain` is true) into the gap. `cavity`: the
+/// voxels inside the skull (None: no skull, a band of [`band_width`]`(max_u)` instead).
+pub fn extend(
+    grid: &Grid,
+    in_brain: &[bool],
+    cavity: Option<&[bool]>,
+    max_u: f64,
+    exact: impl Fn(usize) -> [f64; 3] + Sync,
+) -> Outside {
+    let (free, boundary): (Vec<bool>, Boundary) = match cavity {
+        Some(c) => (c.iter().zip(in_brain).map(|(&c, &b)| c && !b).collect(), Boundary::Skull),
+        None => {
+            let width = band_width(max_u);
+            let d2 = bs_meshgen::edt::squared_distance(in_brain, grid.dims(), grid.spacing());
+            let w2 = (width * width) as f32;
+            (d2.iter().zip(in_brain).map(|(&d, &b)| !b && d <= w2).collect(), Boundary::Band(width))
+        }
+    };
+    let value = |n: usize| if in_brain[n] { exact(n) } else { [0.0; 3] };
+    let ext = harmonic_extension(grid, &free, &value, &ExtensionParams::default());
+    let field = |n: usize| match ext.voxels.binary_search(&(n as u32)) {
+        Ok(s) => ext.values[s],
+        Err(_) => value(n),
+    };
+    let folding = jacobian(grid, &ext.voxels, &field);
+    let report = OutsideReport {
+        boundary,
+        gap_voxels: ext.voxels.len(),
+        iterations: ext.iterations,
+        residual: ext.residual,
+        folding,
+    };
+    Outside { voxels: ext.voxels, values: ext.values, report }
+}
