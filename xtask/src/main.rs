@@ -13,6 +13,8 @@
 //!   processes: preparation and solve times, iterations, accuracy against CalculiX, peak
 //!   memory, speed-up (table in `docs/benchmarks.md`).
 //!
+//! * `ghost`: the warped image where the brain moved away, and the field at the most
+//!   displaced nodes, before and after the extension outside the brain.
 //! * `bench mesh`: `brainshift mesh` at 4 mm on the MNI152 mask and an MNI-sized
 //!   ellipsoid labelmap, 1 and 2 threads.
 //!
@@ -37,6 +39,7 @@ mod bench_warp;
 mod chart;
 mod deps;
 mod fuzz;
+mod ghost;
 mod plot;
 mod reference;
 mod stability;
@@ -66,6 +69,9 @@ Commands:
                   CalculiX, peak memory, speed-up (writes docs/benchmarks.md)
   bench mesh      meshing a labelmap at 4 mm (MNI152 mask and an MNI-sized ellipsoid), 1 and 2
                   threads (release)
+  ghost           the warped MNI152 T1 where the demo's brain moved away (the ghost of the old
+                  cortex) and the exported field at the 50 most displaced nodes, for the identity
+                  and the harmonic extension outside the brain
   validate        [--quick] every reference case (closed forms, DR vs Newton, contact vs brute
                   force, DR + contact vs CalculiX); writes docs/validation.md (release)
   chart           [--case NAME] speed vs accuracy: mesh density, element, DR tolerance, contact
@@ -166,6 +172,7 @@ fn main() -> ExitCode {
             rerun_with_profile("fuzzing", &args)
         }
         Some("fuzz") => report(fuzz::main(&args[1..]), "fuzz"),
+        Some("ghost") => report(ghost::main(), "ghost"),
         Some("reference") => {
             report(reference::parse_args(&args[1..]).and_then(|o| reference::run(&o)), "reference")
         }

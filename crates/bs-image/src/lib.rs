@@ -1,7 +1,9 @@
 //! Images for brainshift: a regular voxel grid with its map to world coordinates in mm
 //! (`Grid`), voxel data on it (`Volume<T>`), the anatomical frame of world coordinates
 //! (`Space`: RAS, the NIfTI world frame, or LPS, the DICOM/ITK one), file formats (NIfTI-1
-//! `.nii`/`.nii.gz` read and written, MetaImage `.mha` written) and sampling.
+//! `.nii`/`.nii.gz` and NRRD `.nrrd`/`.nhdr` read and written, chosen by name in
+//! [`formats`]; MetaImage `.mha` written), sampling, and the harmonic extension of a field
+//! into part of a grid ([`extend`]).
 //!
 //! Voxel data are stored with the first index fastest: `data[i + nx * (j + ny * k)]`, as
 //! in NIfTI files.
@@ -11,9 +13,11 @@
 
 mod error;
 pub mod extend;
+pub mod formats;
 mod grid;
 mod mha;
 pub mod nifti;
+pub mod nrrd;
 pub mod sample;
 mod space;
 

@@ -177,11 +177,12 @@ fn select_nodes(
         return Ok((name, nodes));
     }
     let Some(file) = &b.mask else { return Ok((String::new(), Vec::new())) };
-    let mask = bs_image::nifti::read_labels(file).map_err(|e| SceneError::Read {
-        scene: sp.to_path_buf(),
-        key: format!("[[boundary]] #{} mask", i + 1),
-        message: format!("{e}; the mask must be a NIfTI labelmap (non-zero = selected)"),
-    })?;
+    let mask =
+        bs_image::formats::read_labels(file).map(|(v, _)| v).map_err(|e| SceneError::Read {
+            scene: sp.to_path_buf(),
+            key: format!("[[boundary]] #{} mask", i + 1),
+            message: format!("{e}; the mask must be a NIfTI labelmap (non-zero = selected)"),
+        })?;
     // Mesh frame and units → the image's world frame (NIfTI: RAS) in mm.
     let space = scene.space.space();
     let scale = scene.units.metres() / 1e-3;

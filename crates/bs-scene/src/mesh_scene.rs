@@ -76,7 +76,8 @@ pub fn mesh_to_scene(
     params: &MeshParams,
     craniotomy: bool,
 ) -> Result<MeshedScene, SceneError> {
-    let volume = bs_image::nifti::read_labels(labels)
+    let volume = bs_image::formats::read_labels(labels)
+        .map(|(v, _)| v)
         .map_err(|e| SceneError::Labelmap { file: labels.to_path_buf(), message: e.to_string() })?;
     let meshed = bs_meshgen::mesh_labelmap(&volume, params)
         .map_err(|e| SceneError::Labelmap { file: labels.to_path_buf(), message: e.to_string() })?;

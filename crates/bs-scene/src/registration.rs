@@ -523,34 +523,29 @@ fn image_error(e: bs_image::ImageError) -> SceneError {
     }
 }
 
-fn require_nifti_name(out: &Path) -> Result<(), SceneError> {
-    let name = out.file_name().and_then(|n| n.to_str()).unwrap_or("");
-    if name.ends_with(".nii") || name.ends_with(".nii.gz") {
-        Ok(())
-    } else {
-        Err(SceneError::Write {
-            path: out.to_path_buf(),
-            message: "the output must be a NIfTI file (.nii or .nii.gz)".into(),
-        })
+fn output_error(e: bs_image::ImageError, out: &Path) -> SceneError {
+    SceneError::Write {
+        path: out.to_path_buf(),
+        message: e.to_string().replacen(&format!("{}: ", out.display()), "", 1),
     }
 }
 
-/// `brainshift warp`: resamples the pre-operative image `image` (NIfTI) into the
-/// intra-operative configuration of the result in `result_dir` and writes it to `out` on
-/// the same grid and header (a labelmap with nearest-voxel sampling when `labels`). Nothing
-/// is written when an input is bad.
+/// `brainshift warp`: resamples the pre-operative image `image` (NIfTI or NRRD) into the
+/// intra-operative configuration of the result in `result_dir` and writes it to `out`
+/// (`.nii`, `.nii.gz` or `.nrrd`) on the same grid (and, NIfTI to NIfTI, the same header);
+/// a labelmap with nearest-voxel sampling when `labels`. Nothing is written when an input
+/// is bad.
 pub fn warp_file(
     result_dir: &Path,
     image: &Path,
     out: &Path,
     labels: bool,
 ) -> Result<Summary, SceneError> {
-    require_nifti_name(out)?;
+    bs_image::formats::require_image_output(out).map_err(|e| output_error(e, out))?;
     let started = Instant::now();
     let result = RunResult::load(result_dir)?;
     if labels {
-        let (volume, header) =
-            bs_image::nifti::read_labels_with_header(image).map_err(image_error)?;
+        let (volume, header) = bs_image::formats::read_labels(image).map_err(image_error)?;
         let read_seconds = started.elapsed().as_secs_f64();
         resample_and_write(
             &result,
@@ -559,13 +554,13 @@ pub fn warp_file(
             out,
             read_seconds,
             InverseMap::warp_labels,
-            |v| bs_image::nifti::write_labels(out, v, Some(&header)),
+            |v| bs_image::formats::write_labels(out, v, header.as_ref()),
         )
     } else {
-        let img = bs_image::nifti::read_image(image).map_err(image_error)?;
+        let (volume, header) = bs_image::formats::read_image(image).map_err(image_error)?;
         let read_seconds = started.elapsed().as_secs_f64();
-        resample_and_write(&result, &img.volume, image, out, read_seconds, InverseMap::warp, |v| {
-            bs_image::nifti::write_image(out, v, Some(&img.header))
+        resample_and_write(&result, &volume, image, out, read_seconds, InverseMap::warp, |v| {
+            bs_image::formats::write_image(out, v, header.as_ref())
         })
     }
 }
@@ -600,44 +595,17 @@ fn resample_and_write<T: Copy>(
     })
 }
 
-/// The format of a displacement-field output, from its name.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum FieldFormat {
-    /// `.nii` / `.nii.gz`: 5-D float32, intent DISPVECT, RAS vectors.
-    Nifti,
-    /// `.mha`: MetaImage, LPS origin, directions and vectors (ITK's frame).
-    MetaImage,
-}
-
-impl FieldFormat {
-    /// The format of `out`, or an error saying which names are accepted.
-    pub fn of(out: &Path) -> Result<FieldFormat, SceneError> {
-        let name = out.file_name().and_then(|n| n.to_str()).unwrap_or("");
-        if name.ends_with(".nii") || name.ends_with(".nii.gz") {
-            Ok(FieldFormat::Nifti)
-        } else if name.ends_with(".mha") {
-            Ok(FieldFormat::MetaImage)
-        } else {
-            Err(SceneError::Write {
-                path: out.to_path_buf(),
-                message: "a displacement field is written as .nii, .nii.gz (RAS vectors) or \
-                          .mha (LPS, ITK's frame)"
-                    .into(),
-            })
-        }
-    }
-}
-
 /// `brainshift field`: the result's inverse map as a displacement field d(y) = X(y) − y on
-/// the grid of `reference` (NIfTI), written to `out` (.nii/.nii.gz or .mha).
+/// the grid of `reference` (NIfTI or NRRD), written to `out`: `.nii`/`.nii.gz` (DISPVECT,
+/// RAS vectors), `.mha` or `.nrrd` (LPS, ITK's frame).
 pub fn field_file(result_dir: &Path, reference: &Path, out: &Path) -> Result<Summary, SceneError> {
-    let format = FieldFormat::of(out)?;
+    bs_image::formats::require_field_output(out).map_err(|e| output_error(e, out))?;
     let started = Instant::now();
     let result = RunResult::load(result_dir)?;
-    let img = bs_image::nifti::read_image(reference).map_err(image_error)?;
+    let (volume, header) = bs_image::formats::read_image(reference).map_err(image_error)?;
     let read_seconds = started.elapsed().as_secs_f64();
     let t = Instant::now();
-    let grid = &img.volume.grid;
+    let grid = &volume.grid;
     let map = InverseMap::new(&result, grid, Space::Ras, reference)?;
     let field = map.field();
     let max_displacement = field
@@ -646,13 +614,8 @@ pub fn field_file(result_dir: &Path, reference: &Path, out: &Path) -> Result<Sum
         .fold(0.0, f64::max);
     let map_seconds = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    match format {
-        FieldFormat::Nifti => {
-            bs_image::nifti::write_displacement(out, grid, &field, Some(&img.header))
-        }
-        FieldFormat::MetaImage => bs_image::write_displacement_mha(out, grid, &field),
-    }
-    .map_err(image_error)?;
+    bs_image::formats::write_displacement(out, grid, &field, header.as_ref())
+        .map_err(image_error)?;
     Ok(Summary {
         out: out.to_path_buf(),
         voxels: grid.len(),
