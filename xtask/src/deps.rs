@@ -13,11 +13,12 @@ pub const ALLOWED: &[(&str, &[&str])] = &[
     ("bs-mesh", &[]),
     ("bs-material", &[]),
     ("bs-image", &[]),
+    ("bs-preview", &[]),
     ("bs-meshgen", &["bs-mesh", "bs-image"]),
     ("bs-contact", &["bs-mesh"]),
     ("bs-dr", &["bs-mesh", "bs-material"]),
     ("bs-scene", &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-image", "bs-meshgen"]),
-    ("bs-cli", &["bs-mesh", "bs-dr", "bs-contact", "bs-scene"]),
+    ("bs-cli", &["bs-mesh", "bs-dr", "bs-contact", "bs-scene", "bs-preview"]),
     ("bs-py", &["bs-mesh", "bs-contact", "bs-scene"]),
     (
         "xtask",

@@ -1,6 +1,6 @@
 //! Figures for `cargo xtask chart` and `stability`: every figure is drawn once by code that is
 //! generic over the plotters backend and saved as both SVG and PNG. The PNG text uses the
-//! embedded DejaVu Sans (xtask/assets, Bitstream Vera licence), so no system fonts are needed.
+//! embedded DejaVu Sans (crates/bs-preview/assets, Bitstream Vera licence), so no system fonts are needed.
 
 use std::path::Path;
 use std::sync::Once;
@@ -22,7 +22,7 @@ pub fn err<E: std::fmt::Debug>(e: E) -> String {
 fn register_font() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
-        static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+        static FONT: &[u8] = include_bytes!("../../crates/bs-preview/assets/DejaVuSans.ttf");
         // Registration fails only for a malformed font file, which the assets test catches.
         let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
     });

@@ -55,10 +55,17 @@ pub fn run(out: &Path, from_image: bool) -> Result<ExitCode, Box<dyn std::error:
 }
 
 /// `demo`'s registration outputs: the bundled MNI152 T1 template warped by the result in
-/// `out` (out/warped_t1.nii.gz) and the displacement field on its grid (out/field.nii.gz).
+/// `out` (out/warped_t1.nii.gz, with out/preview.png), and the displacement field on its
+/// grid (out/field.nii.gz).
 pub fn demo_images(out: &Path) -> Result<ExitCode, Box<dyn std::error::Error>> {
     let t1 = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/mni152/t1.nii.gz");
-    crate::warp::run(&t1, out, &out.join("warped_t1.nii.gz"), false)?;
+    crate::warp::run(
+        &t1,
+        out,
+        &out.join("warped_t1.nii.gz"),
+        false,
+        Some(&out.join("preview.png")),
+    )?;
     crate::field::run(&t1, out, &out.join("field.nii.gz"))?;
     Ok(ExitCode::SUCCESS)
 }

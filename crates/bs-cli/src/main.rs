@@ -56,7 +56,8 @@ enum Command {
     },
     /// Runs the bundled real-anatomy scene (MNI152 brain in its skull, craniotomy pushed in)
     /// and applies the result to the MNI152 T1 template: DIR/warped_t1.nii.gz (the template
-    /// in the intra-operative configuration) and DIR/field.nii.gz (the displacement field).
+    /// in the intra-operative configuration), DIR/field.nii.gz (the displacement field) and
+    /// DIR/preview.png (slices before and after, and the displacement).
     Demo {
         /// Output folder (created if missing).
         #[arg(long, default_value = "out")]
@@ -104,33 +105,42 @@ enum Command {
     /// Resamples the pre-operative image into the intra-operative configuration of a run's
     /// result: each voxel centre y inside the deformed brain gets the pre-operative value at
     /// the reference point X(y) (exact inverse of the piecewise-linear FE map; trilinear, or
-    /// nearest voxel with --labels); other voxels keep their value. Same grid and header as
-    /// the input.
+    /// nearest voxel with --labels); between the brain and the skull the displacement is
+    /// extended harmonically to zero at the skull, so the space the brain left samples the
+    /// fluid that was there; voxels beyond the skull keep their value. Same grid (and, NIfTI
+    /// to NIfTI, header) as the input. Images: .nii, .nii.gz, .nrrd, .nhdr.
     Warp {
-        /// The pre-operative image (NIfTI .nii or .nii.gz), in the mesh's world (mm).
+        /// The pre-operative image (.nii, .nii.gz, .nrrd or .nhdr), in the mesh's world (mm).
         #[arg(long)]
         image: PathBuf,
         /// The result directory written by `brainshift run` (result.vtu, report.json).
         #[arg(long)]
         result: PathBuf,
-        /// The warped image (.nii or .nii.gz).
+        /// The warped image (.nii, .nii.gz or .nrrd).
         #[arg(long)]
         out: PathBuf,
         /// The image is a labelmap: nearest-voxel sampling, written as labels.
         #[arg(long)]
         labels: bool,
+        /// Also draw a PNG: three orthogonal slices through the largest displacement
+        /// (pre-operative, warped, and |displacement| in mm with the deformed brain's
+        /// outline and a colour bar).
+        #[arg(long, value_name = "PNG")]
+        preview: Option<PathBuf>,
     },
     /// Writes a run's result as an ITK displacement field on an image's grid:
-    /// d(y) = X(y) - y inside the deformed brain, zero outside. Loaded into 3D Slicer or ITK
-    /// as a transform and applied to the pre-operative image, it gives what `warp` gives.
+    /// d(y) = X(y) - y inside the deformed brain, extended harmonically to zero at the skull,
+    /// zero beyond. Loaded into 3D Slicer or ITK as a transform and applied to the
+    /// pre-operative image, it gives what `warp` gives.
     Field {
-        /// The image whose grid the field is sampled on (NIfTI).
+        /// The image whose grid the field is sampled on (.nii, .nii.gz, .nrrd or .nhdr).
         #[arg(long)]
         reference: PathBuf,
         /// The result directory written by `brainshift run`.
         #[arg(long)]
         result: PathBuf,
-        /// The field: .nii/.nii.gz (5-D float32, intent DISPVECT, RAS vectors) or .mha (LPS).
+        /// The field: .nii/.nii.gz (5-D float32, intent DISPVECT, RAS vectors), .mha or .nrrd
+        /// (vector NRRD; both LPS, ITK's frame).
         #[arg(long)]
         out: PathBuf,
     },
@@ -257,8 +267,8 @@ fn main() -> ExitCode {
             cavity,
             craniotomy,
         }),
-        Command::Warp { image, result, out, labels } => {
-            warp::run(&image, &result, &out, labels).map_err(Into::into)
+        Command::Warp { image, result, out, labels, preview } => {
+            warp::run(&image, &result, &out, labels, preview.as_deref())
         }
         Command::Field { reference, result, out } => {
             field::run(&reference, &result, &out).map_err(Into::into)

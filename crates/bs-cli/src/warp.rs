@@ -5,15 +5,63 @@
 use std::path::Path;
 use std::process::ExitCode;
 
-use bs_scene::SceneError;
 use bs_scene::outside::{Boundary, OutsideReport};
 use bs_scene::registration::Summary;
 
-/// Runs `warp` and prints what it did.
-pub fn run(image: &Path, result: &Path, out: &Path, labels: bool) -> Result<ExitCode, SceneError> {
-    let summary = bs_scene::registration::warp_file(result, image, out, labels)?;
+/// Runs `warp` and prints what it did; with `preview`, also draws the three planes through
+/// the largest displacement into that PNG.
+pub fn run(
+    image: &Path,
+    result: &Path,
+    out: &Path,
+    labels: bool,
+    preview: Option<&Path>,
+) -> Result<ExitCode, Box<dyn std::error::Error>> {
+    if let Some(p) = preview
+        && !p.to_string_lossy().to_ascii_lowercase().ends_with(".png")
+    {
+        return Err(format!(
+            "--preview {}: the preview is a PNG picture; name it .png",
+            p.display()
+        )
+        .into());
+    }
+    let summary = bs_scene::registration::warp_file(result, image, out, labels, preview.is_some())?;
     print_summary("warped", &summary, if labels { "nearest label" } else { "trilinear" });
+    if let (Some(path), Some(planes)) = (preview, &summary.planes) {
+        draw_preview(path, image, planes)?;
+        crate::emit(&format!("wrote {} (preview)\n", path.display()));
+    }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The preview picture: pre-operative, warped and |d| on three planes.
+fn draw_preview(
+    path: &Path,
+    image: &Path,
+    p: &bs_scene::planes::Planes,
+) -> Result<(), bs_preview::PreviewError> {
+    let slices: Vec<bs_preview::Slice> = p
+        .planes
+        .iter()
+        .map(|q| bs_preview::Slice {
+            title: q.title.clone(),
+            width: q.width,
+            height: q.height,
+            spacing: q.spacing,
+            before: q.before.clone(),
+            after: q.after.clone(),
+            magnitude: q.magnitude.clone(),
+            inside: q.inside.clone(),
+            marker: q.marker,
+        })
+        .collect();
+    let name = image.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let title = format!(
+        "{name}: brain shift, largest displacement {:.1} mm at voxel ({}, {}, {})",
+        p.max_mm, p.voxel[0], p.voxel[1], p.voxel[2]
+    );
+    bs_preview::render(path, &title, &slices, p.window, p.max_mm)
 }
 
 /// The lines `warp` and `field` print.

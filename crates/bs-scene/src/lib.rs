@@ -15,7 +15,8 @@
 //! * [`run`] and [`output`]: the verified run of a scene and its three files;
 //! * [`registration`]: a run's result read back and applied to images (the pre-operative
 //!   image warped into the intra-operative configuration, the displacement field for ITK
-//!   and 3D Slicer), with [`outside`]: the map between the deformed brain and the skull;
+//!   and 3D Slicer), with [`outside`]: the map between the deformed brain and the skull,
+//!   and [`planes`]: the slices a preview picture shows;
 //! * [`check`]: everything `run` does before solving, with [`memory`] and [`advice`];
 //! * [`study`]: one scene solved with variations (what validation, charts and stability
 //!   maps measure), [`verdict`]: how such a run ended, and [`findings`]: the
@@ -53,6 +54,7 @@ pub mod memory;
 pub mod mesh_scene;
 pub mod output;
 pub mod outside;
+pub mod planes;
 pub mod prepare;
 pub mod registration;
 pub mod run;

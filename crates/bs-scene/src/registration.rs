@@ -509,6 +509,8 @@ pub struct Summary {
     pub write_seconds: f64,
     /// The map outside the deformed brain (None: identity there).
     pub outside: Option<OutsideReport>,
+    /// The planes through the largest displacement, when asked for (a preview).
+    pub planes: Option<crate::planes::Planes>,
     /// Notes from reading the result.
     pub notes: Vec<String>,
 }
@@ -535,11 +537,14 @@ fn output_error(e: bs_image::ImageError, out: &Path) -> SceneError {
 /// (`.nii`, `.nii.gz` or `.nrrd`) on the same grid (and, NIfTI to NIfTI, the same header);
 /// a labelmap with nearest-voxel sampling when `labels`. Nothing is written when an input
 /// is bad.
+/// With `planes`, the summary carries the three planes through the largest displacement
+/// (for a preview picture).
 pub fn warp_file(
     result_dir: &Path,
     image: &Path,
     out: &Path,
     labels: bool,
+    planes: bool,
 ) -> Result<Summary, SceneError> {
     bs_image::formats::require_image_output(out).map_err(|e| output_error(e, out))?;
     let started = Instant::now();
@@ -555,18 +560,28 @@ pub fn warp_file(
             read_seconds,
             InverseMap::warp_labels,
             |v| bs_image::formats::write_labels(out, v, header.as_ref()),
+            planes.then_some(|v: &u32| *v as f32),
         )
     } else {
         let (volume, header) = bs_image::formats::read_image(image).map_err(image_error)?;
         let read_seconds = started.elapsed().as_secs_f64();
-        resample_and_write(&result, &volume, image, out, read_seconds, InverseMap::warp, |v| {
-            bs_image::formats::write_image(out, v, header.as_ref())
-        })
+        resample_and_write(
+            &result,
+            &volume,
+            image,
+            out,
+            read_seconds,
+            InverseMap::warp,
+            |v| bs_image::formats::write_image(out, v, header.as_ref()),
+            planes.then_some(|v: &f32| *v),
+        )
     }
 }
 
 /// The part of [`warp_file`] common to images and labelmaps: the inverse map on the image's
-/// grid, `resample` through it, `write` the volume, and the timings.
+/// grid, `resample` through it, `write` the volume, the timings, and (with `grey`, the
+/// values as grey levels) the planes of a preview.
+#[allow(clippy::too_many_arguments)]
 fn resample_and_write<T: Copy>(
     result: &RunResult,
     volume: &Volume<T>,
@@ -575,13 +590,23 @@ fn resample_and_write<T: Copy>(
     read_seconds: f64,
     resample: impl FnOnce(&InverseMap, &Volume<T>, &[T]) -> Vec<T>,
     write: impl FnOnce(&Volume<T>) -> Result<(), bs_image::ImageError>,
+    grey: Option<impl Fn(&T) -> f32>,
 ) -> Result<Summary, SceneError> {
     let t = Instant::now();
     let map = InverseMap::new(result, &volume.grid, Space::Ras, image)?;
     let data = resample(&map, volume, &volume.data);
     let map_seconds = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    write(&Volume { grid: volume.grid.clone(), data }).map_err(image_error)?;
+    let warped = Volume { grid: volume.grid.clone(), data };
+    write(&warped).map_err(image_error)?;
+    let write_seconds = t.elapsed().as_secs_f64();
+    let planes = grey.map(|grey| {
+        let f = |v: &Volume<T>| Volume {
+            grid: v.grid.clone(),
+            data: v.data.iter().map(&grey).collect(),
+        };
+        crate::planes::planes(&map, &f(volume), &f(&warped).data, &map.field())
+    });
     Ok(Summary {
         out: out.to_path_buf(),
         voxels: volume.grid.len(),
@@ -589,8 +614,9 @@ fn resample_and_write<T: Copy>(
         max_displacement: result.max_displacement_mm(),
         read_seconds,
         map_seconds,
-        write_seconds: t.elapsed().as_secs_f64(),
+        write_seconds,
         outside: map.outside_report(),
+        planes,
         notes: result.notes.clone(),
     })
 }
@@ -625,6 +651,7 @@ pub fn field_file(result_dir: &Path, reference: &Path, out: &Path) -> Result<Sum
         map_seconds,
         write_seconds: t.elapsed().as_secs_f64(),
         outside: map.outside_report(),
+        planes: None,
         notes: result.notes,
     })
 }

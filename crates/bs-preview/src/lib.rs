@@ -1,0 +1,261 @@
+//! Pictures for brainshift: a PNG a user looks at instead of reading numbers. [`render`]
+//! draws three orthogonal slices (rows) through the point of largest displacement, each as
+//! the pre-operative image, the warped image and the displacement magnitude in mm with the
+//! deformed brain's outline (columns), and a colour bar in mm.
+//!
+//! The input is plain data ([`Slice`]: a grid of numbers with its pixel size in mm and an
+//! inside mask): this crate knows no meshes, images or files other than the PNG it writes.
+//! Text is drawn with the embedded DejaVu Sans (assets/, Bitstream Vera licence), so no
+//! system font is needed.
+//!
+//! *Architecture invariant:* bs-preview depends on no other brainshift crate; bs-scene
+//! cuts the slices, front ends call [`render`].
+
+use std::path::Path;
+use std::sync::Once;
+
+use plotters::prelude::*;
+
+/// One plane of the three pictures: values on a `width × height` grid (first index
+/// fastest, row 0 at the bottom), pixel size in mm, and where the deformed brain is.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Slice {
+    /// Title of the row (e.g. "axial, k = 120").
+    pub title: String,
+    /// Horizontal and vertical sample counts.
+    pub width: usize,
+    /// Vertical sample count.
+    pub height: usize,
+    /// Horizontal and vertical sample spacing (mm).
+    pub spacing: [f64; 2],
+    /// The pre-operative image.
+    pub before: Vec<f32>,
+    /// The warped image.
+    pub after: Vec<f32>,
+    /// |d| (mm).
+    pub magnitude: Vec<f32>,
+    /// Inside the deformed brain.
+    pub inside: Vec<bool>,
+    /// The marker: the point of largest displacement, in samples.
+    pub marker: [usize; 2],
+}
+
+/// What went wrong drawing or writing the picture.
+#[derive(Debug)]
+pub struct PreviewError(pub String);
+
+impl std::fmt::Display for PreviewError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for PreviewError {}
+
+const PANEL: u32 = 300;
+const TOP: u32 = 56;
+const ROW_TITLE: u32 = 22;
+const BAR: u32 = 110;
+
+fn register_font() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
+    });
+}
+
+/// A perceptually ordered colour map (viridis, 9 stops, linearly interpolated).
+pub fn viridis(t: f64) -> RGBColor {
+    const STOPS: [(u8, u8, u8); 9] = [
+        (68, 1, 84),
+        (71, 44, 122),
+        (59, 81, 139),
+        (44, 113, 142),
+        (33, 144, 141),
+        (39, 173, 129),
+        (92, 200, 99),
+        (170, 220, 50),
+        (253, 231, 37),
+    ];
+    let t = if t.is_finite() { t.clamp(0.0, 1.0) } else { 0.0 } * 8.0;
+    let i = (t.floor() as usize).min(7);
+    let f = t - i as f64;
+    let (a, b) = (STOPS[i], STOPS[i + 1]);
+    let mix = |x: u8, y: u8| (x as f64 + f * (y as f64 - x as f64)).round() as u8;
+    RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+}
+
+/// Draws `slices` (normally three) into a PNG at `path`, written atomically (a temporary
+/// file renamed into place). `window`: the grey-level range of the two images; `max_mm`:
+/// the top of the colour bar. `title` heads the picture.
+pub fn render(
+    path: &Path,
+    title: &str,
+    slices: &[Slice],
+    window: [f32; 2],
+    max_mm: f64,
+) -> Result<(), PreviewError> {
+    register_font();
+    let rows = slices.len() as u32;
+    let size = (3 * PANEL + BAR, TOP + rows * (PANEL + ROW_TITLE) + 10);
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("preview.png");
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let tmp = dir.join(format!(".{}.{}.png", name.trim_end_matches(".png"), std::process::id()));
+    let drawn = draw(&tmp, size, title, slices, window, max_mm)
+        .and_then(|_| std::fs::rename(&tmp, path).map_err(|e| PreviewError(e.to_string())));
+    drawn.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        PreviewError(format!("{}: could not write the preview: {}", path.display(), e.0))
+    })
+}
+
+fn err<E: std::fmt::Debug>(e: E) -> PreviewError {
+    PreviewError(format!("{e:?}"))
+}
+
+fn draw(
+    path: &Path,
+    size: (u32, u32),
+    title: &str,
+    slices: &[Slice],
+    window: [f32; 2],
+    max_mm: f64,
+) -> Result<(), PreviewError> {
+    let root = BitMapBackend::new(path, size).into_drawing_area();
+    root.fill(&WHITE).map_err(err)?;
+    let text = |s: &str, x: i32, y: i32, px: u32| {
+        root.draw_text(s, &("sans-serif", px).into_font().color(&BLACK), (x, y))
+    };
+    text(title, 8, 6, 18).map_err(err)?;
+    for (c, head) in [
+        "pre-operative",
+        "warped (intra-operative)",
+        "|displacement| (mm), outline: deformed brain",
+    ]
+    .iter()
+    .enumerate()
+    {
+        text(head, c as i32 * PANEL as i32 + 8, 34, 13).map_err(err)?;
+    }
+    let grey = |v: f32| {
+        let t = ((v - window[0]) / (window[1] - window[0]).max(f32::MIN_POSITIVE)).clamp(0.0, 1.0);
+        let g = (t * 255.0).round() as u8;
+        RGBColor(g, g, g)
+    };
+    for (r, s) in slices.iter().enumerate() {
+        let y0 = TOP + r as u32 * (PANEL + ROW_TITLE);
+        text(&s.title, 8, y0 as i32 + 2, 13).map_err(err)?;
+        // The panel's scale: mm to pixels, the whole slice in a PANEL square, aspect kept.
+        let (wmm, hmm) = (s.width as f64 * s.spacing[0], s.height as f64 * s.spacing[1]);
+        let scale = (PANEL as f64 - 8.0) / wmm.max(hmm);
+        let (pw, ph) = ((wmm * scale) as u32, (hmm * scale) as u32);
+        let oy = y0 + ROW_TITLE + (PANEL - ph) / 2;
+        for c in 0..3u32 {
+            let ox = c * PANEL + (PANEL - pw) / 2;
+            for py in 0..ph {
+                // Row 0 of the slice at the bottom of the panel.
+                let j = (((ph - 1 - py) as f64 + 0.5) / scale / s.spacing[1]) as usize;
+                for px in 0..pw {
+                    let i = ((px as f64 + 0.5) / scale / s.spacing[0]) as usize;
+                    let n = j.min(s.height - 1) * s.width + i.min(s.width - 1);
+                    let colour = match c {
+                        0 => grey(s.before[n]),
+                        1 => grey(s.after[n]),
+                        _ => {
+                            if edge(s, i.min(s.width - 1), j.min(s.height - 1)) {
+                                RGBColor(255, 255, 255)
+                            } else {
+                                viridis(s.magnitude[n] as f64 / max_mm.max(1e-9))
+                            }
+                        }
+                    };
+                    root.draw_pixel(((ox + px) as i32, (oy + py) as i32), &colour).map_err(err)?;
+                }
+            }
+            // The marker: a red cross at the largest displacement.
+            let mx = ox as f64 + (s.marker[0] as f64 + 0.5) * s.spacing[0] * scale;
+            let my = (oy + ph) as f64 - (s.marker[1] as f64 + 0.5) * s.spacing[1] * scale;
+            let red = ShapeStyle::from(&RED).stroke_width(1);
+            for (a, b) in
+                [((-6, 0), (-2, 0)), ((2, 0), (6, 0)), ((0, -6), (0, -2)), ((0, 2), (0, 6))]
+            {
+                root.draw(&PathElement::new(
+                    vec![(mx as i32 + a.0, my as i32 + a.1), (mx as i32 + b.0, my as i32 + b.1)],
+                    red,
+                ))
+                .map_err(err)?;
+            }
+        }
+    }
+    // The colour bar, 0 … max mm.
+    let (bx, by, bh) = (3 * PANEL as i32 + 16, TOP as i32 + ROW_TITLE as i32 + 10, 240i32);
+    for y in 0..bh {
+        let t = 1.0 - y as f64 / (bh - 1) as f64;
+        root.draw(&Rectangle::new([(bx, by + y), (bx + 22, by + y + 1)], viridis(t).filled()))
+            .map_err(err)?;
+    }
+    root.draw(&Rectangle::new([(bx, by), (bx + 22, by + bh)], BLACK.stroke_width(1)))
+        .map_err(err)?;
+    for k in 0..=4 {
+        let v = max_mm * k as f64 / 4.0;
+        let y = by + bh - 1 - (k * (bh - 1) / 4);
+        text(&format!("{v:.1}"), bx + 28, y - 7, 13).map_err(err)?;
+    }
+    text("mm", bx + 28, by - 20, 13).map_err(err)?;
+    root.present().map_err(err)?;
+    Ok(())
+}
+
+/// Whether sample (i, j) is inside the brain with a neighbour outside (the outline).
+fn edge(s: &Slice, i: usize, j: usize) -> bool {
+    let at = |i: usize, j: usize| s.inside[j * s.width + i];
+    if !at(i, j) {
+        return false;
+    }
+    (i == 0 || !at(i - 1, j))
+        || (i + 1 == s.width || !at(i + 1, j))
+        || (j == 0 || !at(i, j - 1))
+        || (j + 1 == s.height || !at(i, j + 1))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_preview_is_a_png_of_the_expected_size() {
+        let (w, h) = (40, 30);
+        let s = Slice {
+            title: "axial".into(),
+            width: w,
+            height: h,
+            spacing: [1.0, 1.5],
+            before: (0..w * h).map(|n| (n % w) as f32).collect(),
+            after: (0..w * h).map(|n| (n / w) as f32).collect(),
+            magnitude: (0..w * h).map(|n| (n % 7) as f32).collect(),
+            inside: (0..w * h).map(|n| (n % w) > 10 && (n % w) < 30).collect(),
+            marker: [20, 15],
+        };
+        let dir = std::env::temp_dir().join(format!("bs-preview-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("p.png");
+        render(&path, "test", &[s.clone(), s.clone(), s], [0.0, 40.0], 6.0).unwrap();
+        let png = std::fs::read(&path).unwrap();
+        assert_eq!(&png[1..4], b"PNG");
+        // IHDR: width and height, big-endian, at bytes 16..24.
+        let width = u32::from_be_bytes([png[16], png[17], png[18], png[19]]);
+        let height = u32::from_be_bytes([png[20], png[21], png[22], png[23]]);
+        assert_eq!((width, height), (3 * PANEL + BAR, TOP + 3 * (PANEL + ROW_TITLE) + 10));
+        // Nothing else was left in the folder (the temporary file was renamed).
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn viridis_runs_from_purple_to_yellow() {
+        assert_eq!(viridis(0.0), RGBColor(68, 1, 84));
+        assert_eq!(viridis(1.0), RGBColor(253, 231, 37));
+        assert_eq!(viridis(f64::NAN), viridis(0.0));
+    }
+}

@@ -1,0 +1,104 @@
+//! The three orthogonal planes through the largest displacement that a preview shows:
+//! the pre-operative image, the warped one, |d| and the deformed brain, cut from a grid as
+//! plain numbers (the front end draws them). Planes are index planes of the image grid
+//! (k: axial, j: coronal, i: sagittal for an image stored in RAS-like order).
+
+use bs_image::Volume;
+
+use crate::registration::InverseMap;
+
+/// One plane (first index fastest, row 0 at the bottom).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plane {
+    /// "axial (k = 97)" and the like.
+    pub title: String,
+    /// Samples along the horizontal axis.
+    pub width: usize,
+    /// Samples along the vertical axis.
+    pub height: usize,
+    /// Sample spacing, horizontal and vertical (mm).
+    pub spacing: [f64; 2],
+    /// Pre-operative values.
+    pub before: Vec<f32>,
+    /// Warped values.
+    pub after: Vec<f32>,
+    /// |d| (mm).
+    pub magnitude: Vec<f32>,
+    /// Inside the deformed brain.
+    pub inside: Vec<bool>,
+    /// The largest displacement, in samples.
+    pub marker: [usize; 2],
+}
+
+/// The three planes with the grey window and the top of the colour scale.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Planes {
+    /// Axial, coronal, sagittal.
+    pub planes: Vec<Plane>,
+    /// Grey levels shown black and white (the 1st and 99.5th percentiles of the image).
+    pub window: [f32; 2],
+    /// The largest |d| (mm).
+    pub max_mm: f64,
+    /// The voxel of the largest |d|.
+    pub voxel: [usize; 3],
+}
+
+/// Cuts the planes through the voxel of largest |d| of `field`.
+pub fn planes(map: &InverseMap, before: &Volume<f32>, after: &[f32], field: &[[f32; 3]]) -> Planes {
+    let g = map.grid();
+    let [nx, ny, nz] = g.dims();
+    let norm = |d: &[f32; 3]| (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+    let (best, max) = field
+        .iter()
+        .enumerate()
+        .fold((0usize, 0.0f32), |(b, m), (n, d)| if norm(d) > m { (n, norm(d)) } else { (b, m) });
+    let v = [best % nx, (best / nx) % ny, best / (nx * ny)];
+    let sp = g.spacing();
+    let inside = |n: usize| map.reference_point(n).is_some();
+    // (title, width axis, height axis, fixed axis)
+    let cuts = [("axial", 0, 1, 2), ("coronal", 0, 2, 1), ("sagittal", 1, 2, 0)];
+    let dims = [nx, ny, nz];
+    let planes = cuts
+        .iter()
+        .map(|&(name, a, b, fixed)| {
+            let (w, h) = (dims[a], dims[b]);
+            let mut p = Plane {
+                title: format!("{name} ({} = {})", ["i", "j", "k"][fixed], v[fixed]),
+                width: w,
+                height: h,
+                spacing: [sp[a], sp[b]],
+                before: Vec::with_capacity(w * h),
+                after: Vec::with_capacity(w * h),
+                magnitude: Vec::with_capacity(w * h),
+                inside: Vec::with_capacity(w * h),
+                marker: [v[a], v[b]],
+            };
+            for y in 0..h {
+                for x in 0..w {
+                    let mut ijk = v;
+                    ijk[a] = x;
+                    ijk[b] = y;
+                    let n = g.index(ijk[0], ijk[1], ijk[2]);
+                    p.before.push(before.data[n]);
+                    p.after.push(after[n]);
+                    p.magnitude.push(norm(&field[n]));
+                    p.inside.push(inside(n));
+                }
+            }
+            p
+        })
+        .collect();
+    Planes { planes, window: window(&before.data), max_mm: max as f64, voxel: v }
+}
+
+/// The 1st and 99.5th percentiles of a subsample of the values.
+fn window(data: &[f32]) -> [f32; 2] {
+    let mut s: Vec<f32> = data.iter().step_by(7).copied().filter(|v| v.is_finite()).collect();
+    if s.is_empty() {
+        return [0.0, 1.0];
+    }
+    s.sort_by(f32::total_cmp);
+    let at = |q: f64| s[((s.len() - 1) as f64 * q) as usize];
+    let (lo, hi) = (at(0.01), at(0.995));
+    if hi > lo { [lo, hi] } else { [lo, lo + 1.0] }
+}
