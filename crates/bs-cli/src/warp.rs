@@ -92,9 +92,13 @@ pub(crate) fn outside_line(o: &OutsideReport) -> String {
         Boundary::Band(w) => format!("no skull: zero {w:.1} mm from the deformed brain"),
     };
     let f = &o.folding;
+    let at = o
+        .worst_at
+        .map(|p| format!(" at ({:.1}, {:.1}, {:.1}) mm", p[0], p[1], p[2]))
+        .unwrap_or_default();
     format!(
         "outside the brain: {} gap voxels extended harmonically ({to}; {} iterations, \
-         residual {:.1e}); det(I + grad d) min {:.3}, {} voxels <= 0{}",
+         residual {:.1e}); det(I + grad d) min {:.3}{at}, {} voxels <= 0{}",
         o.gap_voxels,
         o.iterations,
         o.residual,

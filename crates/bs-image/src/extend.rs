@@ -26,7 +26,8 @@ use crate::Grid;
 #[derive(Debug, Clone, Copy)]
 pub struct ExtensionParams {
     /// Stop when every component's residual norm is below `tolerance` times its right-hand
-    /// side's norm.
+    /// side's norm (default 1e-5: on the MNI152 demo the warped T1 then differs from the
+    /// 1e-6 solve by at most 0.085 of its 255 range, 0.002 on average where it differs).
     pub tolerance: f64,
     /// Conjugate-gradient iterations at most.
     pub max_iterations: usize,
@@ -34,7 +35,7 @@ pub struct ExtensionParams {
 
 impl Default for ExtensionParams {
     fn default() -> Self {
-        ExtensionParams { tolerance: 1e-7, max_iterations: 20_000 }
+        ExtensionParams { tolerance: 1e-5, max_iterations: 20_000 }
     }
 }
 
@@ -79,8 +80,12 @@ pub fn harmonic_extension(
     let h = grid.spacing();
     let w = [1.0 / (h[0] * h[0]), 1.0 / (h[1] * h[1]), 1.0 / (h[2] * h[2])];
     let stride = [1isize, nx as isize, (nx * ny) as isize];
-    // Free voxel → its position in `voxels`: binary search in the sorted list.
-    let slot = |n: usize| voxels.binary_search(&(n as u32)).ok().map(|s| s as u32);
+    // Free voxel → its position in `voxels` (a dense table: one random read per neighbour).
+    let mut slots = vec![NONE; grid.len()];
+    for (s, &v) in voxels.iter().enumerate() {
+        slots[v as usize] = s as u32;
+    }
+    let slot = |n: usize| Some(slots[n]).filter(|&s| s != NONE);
     // Neighbour table, diagonal and right-hand side.
     let setup: Vec<([u32; 6], f64, [f64; 3])> = voxels
         .par_iter()
@@ -112,88 +117,128 @@ pub fn harmonic_extension(
             (nb, diag, rhs)
         })
         .collect();
-    let apply = |x: &[[f64; 3]], y: &mut [[f64; 3]]| {
-        y.par_iter_mut().zip(setup.par_iter()).zip(x.par_iter()).for_each(
-            |((y, (nb, diag, _)), xi)| {
-                let mut acc = [diag * xi[0], diag * xi[1], diag * xi[2]];
-                for (a, &q) in nb.iter().enumerate() {
-                    if q != NONE {
-                        let wq = w[a / 2];
-                        let xq = &x[q as usize];
-                        for c in 0..3 {
-                            acc[c] -= wq * xq[c];
-                        }
-                    }
-                }
-                *y = acc;
-            },
-        );
-    };
-    let dot = |a: &[[f64; 3]], b: &[[f64; 3]]| -> [f64; 3] {
-        let parts: Vec<[f64; 3]> = a
-            .par_chunks(CHUNK)
-            .zip(b.par_chunks(CHUNK))
-            .map(|(a, b)| {
-                let mut s = [0.0; 3];
-                for (x, y) in a.iter().zip(b) {
-                    for c in 0..3 {
-                        s[c] += x[c] * y[c];
-                    }
-                }
-                s
-            })
-            .collect();
+    drop(slots);
+    let nb: Vec<[u32; 6]> = setup.iter().map(|s| s.0).collect();
+    let diag: Vec<f64> = setup.iter().map(|s| s.1).collect();
+    let b: Vec<[f64; 3]> = setup.iter().map(|s| s.2).collect();
+    drop(setup);
+    let sum3 = |parts: Vec<[f64; 3]>| {
         parts.iter().fold([0.0; 3], |s, p| [s[0] + p[0], s[1] + p[1], s[2] + p[2]])
     };
-    let b: Vec<[f64; 3]> = setup.iter().map(|s| s.2).collect();
-    let inv_diag: Vec<f64> = setup.iter().map(|s| 1.0 / s.1).collect();
-    let b_norm = dot(&b, &b).map(f64::sqrt);
-    // x₀ = D⁻¹ b (the first Jacobi step), r = b − A x₀.
-    let mut x: Vec<[f64; 3]> =
-        b.iter().zip(&inv_diag).map(|(b, d)| [b[0] * d, b[1] * d, b[2] * d]).collect();
-    let mut ax = vec![[0.0; 3]; m];
-    apply(&x, &mut ax);
-    let mut r: Vec<[f64; 3]> =
-        b.iter().zip(&ax).map(|(b, a)| [b[0] - a[0], b[1] - a[1], b[2] - a[2]]).collect();
-    let precondition = |r: &[[f64; 3]], z: &mut [[f64; 3]]| {
-        z.par_iter_mut().zip(r.par_iter()).zip(inv_diag.par_iter()).for_each(|((z, r), d)| {
-            *z = [r[0] * d, r[1] * d, r[2] * d];
-        });
-    };
-    let mut z = vec![[0.0; 3]; m];
-    precondition(&r, &mut z);
-    let mut p = z.clone();
-    let mut rz = dot(&r, &z);
-    let mut ap = ax;
-    let relative = |r: &[[f64; 3]]| {
-        let rn = dot(r, r).map(f64::sqrt);
-        (0..3).map(|c| if b_norm[c] > 0.0 { rn[c] / b_norm[c] } else { rn[c] }).fold(0.0, f64::max)
-    };
-    let mut residual = relative(&r);
-    let mut iterations = 0;
-    while residual > params.tolerance && iterations < params.max_iterations {
-        apply(&p, &mut ap);
-        let pap = dot(&p, &ap);
-        let alpha = [0, 1, 2].map(|c| if pap[c] > 0.0 { rz[c] / pap[c] } else { 0.0 });
-        x.par_iter_mut().zip(r.par_iter_mut()).zip(p.par_iter().zip(ap.par_iter())).for_each(
-            |((x, r), (p, ap))| {
+    // (A x)_i = diag_i x_i − Σ w x_neighbour, for the rows `lo..` of `out`.
+    let apply_row = |i: usize, x: &[[f64; 3]]| {
+        let xi = &x[i];
+        let mut acc = [diag[i] * xi[0], diag[i] * xi[1], diag[i] * xi[2]];
+        for (a, &q) in nb[i].iter().enumerate() {
+            if q != NONE {
+                let (wq, xq) = (w[a / 2], &x[q as usize]);
                 for c in 0..3 {
-                    x[c] += alpha[c] * p[c];
-                    r[c] -= alpha[c] * ap[c];
+                    acc[c] -= wq * xq[c];
                 }
-            },
+            }
+        }
+        acc
+    };
+    let norm = |v: &[[f64; 3]]| {
+        sum3(
+            v.par_chunks(CHUNK)
+                .map(|c| {
+                    c.iter().fold([0.0; 3], |s, x| {
+                        [s[0] + x[0] * x[0], s[1] + x[1] * x[1], s[2] + x[2] * x[2]]
+                    })
+                })
+                .collect(),
+        )
+        .map(f64::sqrt)
+    };
+    let b_norm = norm(&b);
+    let relative = |rr: [f64; 3]| {
+        (0..3)
+            .map(|c| if b_norm[c] > 0.0 { rr[c].sqrt() / b_norm[c] } else { rr[c].sqrt() })
+            .fold(0.0, f64::max)
+    };
+    // x₀ = D⁻¹ b (a Jacobi step), r = b − A x₀, p = D⁻¹ r.
+    let mut x: Vec<[f64; 3]> =
+        b.iter().zip(&diag).map(|(b, d)| [b[0] / d, b[1] / d, b[2] / d]).collect();
+    let mut r: Vec<[f64; 3]> = (0..m)
+        .into_par_iter()
+        .map(|i| {
+            let ax = apply_row(i, &x);
+            [b[i][0] - ax[0], b[i][1] - ax[1], b[i][2] - ax[2]]
+        })
+        .collect();
+    drop(b);
+    let mut p: Vec<[f64; 3]> =
+        r.iter().zip(&diag).map(|(r, d)| [r[0] / d, r[1] / d, r[2] / d]).collect();
+    let dot_rz = |r: &[[f64; 3]]| {
+        sum3(
+            r.par_chunks(CHUNK)
+                .enumerate()
+                .map(|(k, c)| {
+                    c.iter().enumerate().fold([0.0; 3], |s, (j, r)| {
+                        let d = diag[k * CHUNK + j];
+                        [s[0] + r[0] * r[0] / d, s[1] + r[1] * r[1] / d, s[2] + r[2] * r[2] / d]
+                    })
+                })
+                .collect(),
+        )
+    };
+    let mut rz = dot_rz(&r);
+    let mut residual = relative(norm(&r).map(|v| v * v));
+    let mut ap = vec![[0.0; 3]; m];
+    let mut iterations = 0;
+    // Three fused passes per iteration (A p with p·Ap; x, r updated with r·z and r·r; p),
+    // each summed in fixed chunks.
+    while residual > params.tolerance && iterations < params.max_iterations {
+        let pap = sum3(
+            ap.par_chunks_mut(CHUNK)
+                .enumerate()
+                .map(|(k, out)| {
+                    let mut s = [0.0; 3];
+                    for (j, o) in out.iter_mut().enumerate() {
+                        let i = k * CHUNK + j;
+                        *o = apply_row(i, &p);
+                        for c in 0..3 {
+                            s[c] += p[i][c] * o[c];
+                        }
+                    }
+                    s
+                })
+                .collect(),
         );
-        precondition(&r, &mut z);
-        let rz_new = dot(&r, &z);
+        let alpha = [0, 1, 2].map(|c| if pap[c] > 0.0 { rz[c] / pap[c] } else { 0.0 });
+        let sums: Vec<([f64; 3], [f64; 3])> = x
+            .par_chunks_mut(CHUNK)
+            .zip(r.par_chunks_mut(CHUNK))
+            .enumerate()
+            .map(|(k, (xc, rc))| {
+                let (mut rzs, mut rrs) = ([0.0; 3], [0.0; 3]);
+                for (j, (xi, ri)) in xc.iter_mut().zip(rc.iter_mut()).enumerate() {
+                    let i = k * CHUNK + j;
+                    for c in 0..3 {
+                        xi[c] += alpha[c] * p[i][c];
+                        ri[c] -= alpha[c] * ap[i][c];
+                        rzs[c] += ri[c] * ri[c] / diag[i];
+                        rrs[c] += ri[c] * ri[c];
+                    }
+                }
+                (rzs, rrs)
+            })
+            .collect();
+        let rz_new = sum3(sums.iter().map(|s| s.0).collect());
+        let rr = sum3(sums.iter().map(|s| s.1).collect());
         let beta = [0, 1, 2].map(|c| if rz[c] > 0.0 { rz_new[c] / rz[c] } else { 0.0 });
         rz = rz_new;
-        p.par_iter_mut().zip(z.par_iter()).for_each(|(p, z)| {
-            for c in 0..3 {
-                p[c] = z[c] + beta[c] * p[c];
+        p.par_chunks_mut(CHUNK).zip(r.par_chunks(CHUNK)).enumerate().for_each(|(k, (pc, rc))| {
+            for (j, (pi, ri)) in pc.iter_mut().zip(rc).enumerate() {
+                let d = diag[k * CHUNK + j];
+                for c in 0..3 {
+                    pi[c] = ri[c] / d + beta[c] * pi[c];
+                }
             }
         });
         iterations += 1;
-        residual = relative(&r);
+        residual = relative(rr);
     }
     Extended { voxels, values: x, iterations, residual }
 }
@@ -207,6 +252,8 @@ pub struct Folding {
     pub non_positive: usize,
     /// Smallest det(I + ∇d) (1 when no voxel was measured).
     pub min: f64,
+    /// The voxel where it is smallest (linear index), if any was measured.
+    pub worst: Option<u32>,
 }
 
 /// det(I + ∇d) at each of `voxels`, by central differences of `d` (one-sided at the grid's
@@ -239,10 +286,12 @@ pub fn jacobian(grid: &Grid, voxels: &[u32], d: &(dyn Fn(usize) -> [f64; 3] + Sy
             (Matrix3::identity() + g * to_index).determinant()
         })
         .collect();
+    let worst = dets.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1)).map(|(i, _)| voxels[i]);
     Folding {
         voxels: dets.len(),
         non_positive: dets.iter().filter(|&&j| j <= 0.0).count(),
         min: dets.iter().copied().fold(1.0, f64::min),
+        worst,
     }
 }
 
@@ -262,7 +311,7 @@ mod tests {
             &grid,
             &free,
             &|n| if n % 10 == 0 { d0 } else { [0.0; 3] },
-            &ExtensionParams::default(),
+            &ExtensionParams { tolerance: 1e-10, ..ExtensionParams::default() },
         );
         assert_eq!(ext.voxels.len(), 8 * 12);
         for (&v, d) in ext.voxels.iter().zip(&ext.values) {
@@ -291,7 +340,12 @@ mod tests {
         let grid = Grid::axis_aligned([10, 1, 1], [1.0; 3], [0.0; 3]).unwrap();
         let free: Vec<bool> = (0..10).map(|i| (1..=8).contains(&i)).collect();
         let d = |n: usize| if n == 0 { [10.0, 0.0, 0.0] } else { [0.0; 3] };
-        let ext = harmonic_extension(&grid, &free, &d, &ExtensionParams::default());
+        let ext = harmonic_extension(
+            &grid,
+            &free,
+            &d,
+            &ExtensionParams { tolerance: 1e-10, ..ExtensionParams::default() },
+        );
         let field =
             |n: usize| ext.voxels.binary_search(&(n as u32)).map(|s| ext.values[s]).unwrap_or(d(n));
         let f = jacobian(&grid, &ext.voxels, &field);
@@ -312,7 +366,12 @@ mod tests {
             let p = grid.world(idx(&grid, n));
             if r(n) < 5.0 { [p.y, -p.x, 0.5] } else { [0.0; 3] }
         };
-        let ext = harmonic_extension(&grid, &free, &f, &ExtensionParams::default());
+        let ext = harmonic_extension(
+            &grid,
+            &free,
+            &f,
+            &ExtensionParams { tolerance: 1e-10, ..ExtensionParams::default() },
+        );
         let value =
             |n: usize| ext.voxels.binary_search(&(n as u32)).map(|s| ext.values[s]).unwrap_or(f(n));
         let h = grid.spacing();

@@ -61,6 +61,8 @@ pub struct OutsideReport {
     pub residual: f64,
     /// det(I + ∇d) on the gap voxels.
     pub folding: Folding,
+    /// Where det(I + ∇d) is smallest (the image's world frame, mm).
+    pub worst_at: Option<[f64; 3]>,
 }
 
 /// The extended field on the gap voxels.
@@ -101,9 +103,13 @@ pub fn extend(
     };
     let value = |n: usize| if in_brain[n] { exact(n) } else { [0.0; 3] };
     let ext = harmonic_extension(grid, &free, &value, &ExtensionParams::default());
-    let field = |n: usize| match ext.voxels.binary_search(&(n as u32)) {
-        Ok(s) => ext.values[s],
-        Err(_) => value(n),
+    let mut slot = vec![u32::MAX; grid.len()];
+    for (s, &v) in ext.voxels.iter().enumerate() {
+        slot[v as usize] = s as u32;
+    }
+    let field = |n: usize| match slot[n] {
+        u32::MAX => value(n),
+        s => ext.values[s as usize],
     };
     let folding = jacobian(grid, &ext.voxels, &field);
     let report = OutsideReport {
@@ -112,6 +118,12 @@ pub fn extend(
         iterations: ext.iterations,
         residual: ext.residual,
         folding,
+        worst_at: folding.worst.map(|v| {
+            let [nx, ny, _] = grid.dims();
+            let n = v as usize;
+            let p = grid.world([(n % nx) as f64, ((n / nx) % ny) as f64, (n / (nx * ny)) as f64]);
+            [p.x, p.y, p.z]
+        }),
     };
     Outside { voxels: ext.voxels, values: ext.values, report }
 }
