@@ -218,6 +218,19 @@ impl LatticeLocation {
         Some((t as usize, self.weights(t as usize, [i, j, k])))
     }
 
+    /// The barycentric coordinates of lattice point `ijk` in tetrahedron `t`, not clamped:
+    /// negative outside it (the tetrahedron's affine map extended beyond its faces).
+    pub fn barycentric(&self, t: usize, ijk: [usize; 3]) -> [f64; 4] {
+        let q0 = &self.first[t];
+        let d = nalgebra::Vector3::new(
+            ijk[0] as f64 - q0.x,
+            ijk[1] as f64 - q0.y,
+            ijk[2] as f64 - q0.z,
+        );
+        let l = self.inverse[t] * d;
+        [1.0 - l.x - l.y - l.z, l.x, l.y, l.z]
+    }
+
     fn weights(&self, t: usize, ijk: [usize; 3]) -> [f64; 4] {
         let q0 = &self.first[t];
         let d = nalgebra::Vector3::new(

@@ -333,6 +333,7 @@ impl InverseMap {
                 cavity.as_deref(),
                 result.max_displacement_mm(),
                 |n| map.exact_displacement(n).unwrap_or([0.0; 3]),
+                |n| map.extrapolated_displacement(n),
             );
             map.outside = Some(outside);
         }
@@ -344,6 +345,36 @@ impl InverseMap {
         let x = self.reference_point(n)?;
         let d = x - self.voxel_centre(n);
         Some([d.x, d.y, d.z])
+    }
+
+    /// d at voxel `n` just outside the deformed mesh by the affine map of the tetrahedron
+    /// holding a face-neighbouring voxel (the first inside one, in the order −i, +i, −j,
+    /// +j, −k, +k): the finite-element inverse continued linearly across the surface.
+    fn extrapolated_displacement(&self, n: usize) -> Option<[f64; 3]> {
+        let [nx, ny, nz] = self.grid.dims();
+        let ijk = [n % nx, (n / nx) % ny, n / (nx * ny)];
+        let dims = [nx, ny, nz];
+        let stride = [1, nx, nx * ny];
+        let owners = self.location.owners();
+        for a in 0..3 {
+            for up in [false, true] {
+                let q = if up {
+                    (ijk[a] + 1 < dims[a]).then(|| n + stride[a])
+                } else {
+                    (ijk[a] > 0).then(|| n - stride[a])
+                };
+                let Some(q) = q else { continue };
+                let t = owners[q];
+                if t == OUTSIDE {
+                    continue;
+                }
+                let w = self.location.barycentric(t as usize, ijk);
+                let x = self.location.interpolate(t as usize, &w, &self.reference);
+                let d = x - self.voxel_centre(n);
+                return Some([d.x, d.y, d.z]);
+            }
+        }
+        None
     }
 
     fn voxel_centre(&self, n: usize) -> Point3<f64> {

@@ -2,7 +2,9 @@
 //! whole-head T1 template (skull and scalp in it) and its labelmap warped.
 //!
 //! * Every voxel outside the skull cavity is unchanged, bit for bit (bone and scalp do not
-//!   move).
+//!   move). The bundled T1 template is brain-extracted (zero outside the brain), so the
+//!   test paints a textured head into it beyond the cavity (skull and scalp: every voxel a
+//!   different non-zero value) and warps that whole-head image.
 //! * The warped labelmap carries no brain label outside the deformed brain (the space the
 //!   brain left gets what was there: background or CSF), where the identity outside the
 //!   brain left the old brain's labels.
@@ -44,13 +46,20 @@ fn the_demo_warp_keeps_the_bone_moves_no_brain_label_outside_and_matches_the_nod
     assert_eq!(report.folding.non_positive, 0, "{report:?}");
 
     // 1. Outside the skull cavity: bit for bit.
-    let warped = map.warp(&t1, &t1.data);
     let cavity = bs_mesh::lattice_inside::inside_closed_surface(
         &skull.vertices,
         &skull.triangles,
         g.dims(),
         g.world_to_voxel(),
     );
+    let head = Volume {
+        grid: g.clone(),
+        data: (0..g.len())
+            .map(|n| if cavity[n] { t1.data[n] } else { 300.0 + (n % 97) as f32 + 0.25 })
+            .collect(),
+    };
+    let t1 = head;
+    let warped = map.warp(&t1, &t1.data);
     let mut outside = 0;
     for n in 0..g.len() {
         if !cavity[n] {
