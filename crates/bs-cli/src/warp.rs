@@ -105,7 +105,7 @@ pub(crate) fn outside_line(o: &OutsideReport) -> String {
         f.min,
         f.non_positive,
         if f.non_positive > 0 {
-            " (the map folds there: the brain moved farther than the gap it left allows)"
+            " (the map y -> y + d(y) folds there: a gap narrower than the voxels or than the shift)"
         } else {
             " (invertible)"
         }
