@@ -310,7 +310,7 @@ mod tests {
         let ext = harmonic_extension(
             &grid,
             &free,
-            &|n| if n % 10 == 0 { d0 } else { [0.0; 3] },
+            &|n| if n.is_multiple_of(10) { d0 } else { [0.0; 3] },
             &ExtensionParams { tolerance: 1e-10, ..ExtensionParams::default() },
         );
         assert_eq!(ext.voxels.len(), 8 * 12);
@@ -323,11 +323,10 @@ mod tests {
         }
         // The map i ↦ x + d stretches monotonically: J = 1 + ∂d_x/∂x = 1 − 4/(9 × 0.7) > 0.
         let field = |n: usize| {
-            ext.voxels.binary_search(&(n as u32)).map(|s| ext.values[s]).unwrap_or(if n % 10 == 0 {
-                d0
-            } else {
-                [0.0; 3]
-            })
+            ext.voxels
+                .binary_search(&(n as u32))
+                .map(|s| ext.values[s])
+                .unwrap_or(if n.is_multiple_of(10) { d0 } else { [0.0; 3] })
         };
         let f = jacobian(&grid, &ext.voxels, &field);
         assert_eq!(f.non_positive, 0);

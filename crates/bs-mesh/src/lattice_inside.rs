@@ -39,8 +39,8 @@ pub fn inside_closed_surface(
         let hi = c.iter().map(|p| p.z).fold(f64::NEG_INFINITY, f64::max) - ROW_OFFSET[1];
         let (lo, hi) = (lo.ceil().max(0.0), hi.floor().min(nz as f64 - 1.0));
         if lo <= hi {
-            for k in lo as usize..=hi as usize {
-                per_slice[k].push(t as u32);
+            for slice in &mut per_slice[lo as usize..=hi as usize] {
+                slice.push(t as u32);
             }
         }
     }
@@ -57,9 +57,9 @@ pub fn inside_closed_surface(
             if lo > hi {
                 continue;
             }
-            for j in lo as usize..=hi as usize {
+            for (j, row) in rows.iter_mut().enumerate().take(hi as usize + 1).skip(lo as usize) {
                 if let Some(x) = crossing(&c, j as f64 + ROW_OFFSET[0], z) {
-                    rows[j].push(x);
+                    row.push(x);
                 }
             }
         }
