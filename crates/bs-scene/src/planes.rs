@@ -3,9 +3,7 @@
 //! plain numbers (the front end draws them). Planes are index planes of the image grid
 //! (k: axial, j: coronal, i: sagittal for an image stored in RAS-like order).
 
-use bs_image::Volume;
-
-use crate::registration::InverseMap;
+use bs_image::{Grid, Volume};
 
 /// One plane (first index fastest, row 0 at the bottom).
 #[derive(Debug, Clone, PartialEq)]
@@ -43,9 +41,15 @@ pub struct Planes {
     pub voxel: [usize; 3],
 }
 
-/// Cuts the planes through the voxel of largest |d| of `field`.
-pub fn planes(map: &InverseMap, before: &Volume<f32>, after: &[f32], field: &[[f32; 3]]) -> Planes {
-    let g = map.grid();
+/// Cuts the planes of `g` through the voxel of largest |d| of `field`; `in_brain(n)`: voxel
+/// `n` lies inside the deformed brain.
+pub fn planes(
+    g: &Grid,
+    in_brain: &dyn Fn(usize) -> bool,
+    before: &Volume<f32>,
+    after: &[f32],
+    field: &[[f32; 3]],
+) -> Planes {
     let [nx, ny, nz] = g.dims();
     let norm = |d: &[f32; 3]| (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
     let (best, max) = field
@@ -54,7 +58,7 @@ pub fn planes(map: &InverseMap, before: &Volume<f32>, after: &[f32], field: &[[f
         .fold((0usize, 0.0f32), |(b, m), (n, d)| if norm(d) > m { (n, norm(d)) } else { (b, m) });
     let v = [best % nx, (best / nx) % ny, best / (nx * ny)];
     let sp = g.spacing();
-    let inside = |n: usize| map.reference_point(n).is_some();
+    let inside = in_brain;
     // (title, width axis, height axis, fixed axis)
     let cuts = [("axial", 0, 1, 2), ("coronal", 0, 2, 1), ("sagittal", 1, 2, 0)];
     let dims = [nx, ny, nz];

@@ -636,7 +636,8 @@ fn resample_and_write<T: Copy>(
             grid: v.grid.clone(),
             data: v.data.iter().map(&grey).collect(),
         };
-        crate::planes::planes(&map, &f(volume), &f(&warped).data, &map.field())
+        let in_brain = |n: usize| map.reference_point(n).is_some();
+        crate::planes::planes(map.grid(), &in_brain, &f(volume), &f(&warped).data, &map.field())
     });
     Ok(Summary {
         out: out.to_path_buf(),

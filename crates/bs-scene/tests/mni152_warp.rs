@@ -1,13 +1,13 @@
 //! The registration outputs on real anatomy: the MNI152 demo scene solved in process, its
 //! whole-head T1 template (skull and scalp in it) and its labelmap warped.
 //!
-//! * Every voxel outside the skull cavity is unchanged, bit for bit (bone and scalp do not
-//!   move). The bundled T1 template is brain-extracted (zero outside the brain), so the
+//! * Every voxel outside the skull cavity (and not brain touching the skull) is unchanged,
+//!   bit for bit (bone and scalp do not move). The bundled T1 template is brain-extracted (zero outside the brain), so the
 //!   test paints a textured head into it beyond the cavity (skull and scalp: every voxel a
 //!   different non-zero value) and warps that whole-head image.
-//! * The warped labelmap carries no brain label outside the deformed brain (the space the
-//!   brain left gets what was there: background or CSF), where the identity outside the
-//!   brain left the old brain's labels.
+//! * The warped labelmap carries no brain label between the deformed brain and the skull
+//!   (the space the brain left gets what was there: background or CSF), where the identity
+//!   outside the brain left the old brain's labels.
 //! * At the 50 most displaced nodes the exported field, interpolated trilinearly as ITK
 //!   does, gives −u within 0.3 mm.
 //! * The extension folds on fewer than 0.5 % of the gap voxels (det(I + ∇d) ≤ 0: 0.14 %
@@ -64,9 +64,12 @@ fn the_demo_warp_keeps_the_bone_moves_no_brain_label_outside_and_matches_the_nod
     };
     let t1 = head;
     let warped = map.warp(&t1, &t1.data);
+    // Brain voxels may touch the skull's faceted surface from outside by a hair (contact is
+    // verified to a tolerance): those are brain, mapped exactly; every other voxel beyond
+    // the cavity is the head, unchanged.
     let mut outside = 0;
     for n in 0..g.len() {
-        if !cavity[n] {
+        if !cavity[n] && map.reference_point(n).is_none() {
             outside += 1;
             assert_eq!(warped[n].to_bits(), t1.data[n].to_bits(), "voxel {n}");
         }
@@ -76,7 +79,8 @@ fn the_demo_warp_keeps_the_bone_moves_no_brain_label_outside_and_matches_the_nod
     assert!(changed > 1_000_000, "the warp changed {changed} voxels");
 
     // 2. Labels: the brain's labels (most of their voxels inside the pre-operative mesh)
-    //    never appear outside the deformed brain.
+    //    never appear between the deformed brain and the skull. (Beyond the skull nothing
+    //    moves: the labelmap's brain stem below the mesh's cut keeps its label there.)
     let labels = bs_image::nifti::read_labels(&fx().join("labels.nii.gz")).unwrap();
     assert_eq!(labels.grid, g);
     let (tets, _) = tetrahedra(&mesh);
@@ -88,7 +92,9 @@ fn the_demo_warp_keeps_the_bone_moves_no_brain_label_outside_and_matches_the_nod
     assert!(brain.contains(&1), "{brain:?}");
     let count_outside = |w: &[u32], m: &InverseMap| {
         (0..g.len())
-            .filter(|&n| m.reference_point(n).is_none() && brain.binary_search(&w[n]).is_ok())
+            .filter(|&n| {
+                cavity[n] && m.reference_point(n).is_none() && brain.binary_search(&w[n]).is_ok()
+            })
             .count()
     };
     let new = map.warp_labels(&labels, &labels.data);
