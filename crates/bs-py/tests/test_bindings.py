@@ -7,6 +7,7 @@ import os
 import re
 
 import numpy as np
+from pathlib import Path
 import pytest
 
 import brainshift
@@ -40,7 +41,8 @@ def test_displacements_are_bit_identical_to_the_cli(scene, fixtures, cli, tmp_pa
     assert (tmp_path / "py" / "displacements.csv").read_bytes() == (
         tmp_path / "cli" / "displacements.csv"
     ).read_bytes()
-    assert set(written) == {"vtu", "csv", "report"}
+    assert set(written) == {"vtu", "vtk", "csv", "report", "skull"}
+    assert all(written[k] is None or Path(written[k]).is_file() for k in written)
     cli_report = json.loads((tmp_path / "cli" / "report.json").read_text())
     py_report = json.loads((tmp_path / "py" / "report.json").read_text())
     assert result.report.keys() == cli_report.keys() == py_report.keys()
