@@ -74,10 +74,11 @@ pub mod krylov;
 pub mod loads;
 pub mod model;
 pub mod newton;
-pub mod newton_krylov;
+pub mod nk;
 pub mod post;
 pub mod solver;
 pub mod sparse;
+pub mod step_bound;
 pub mod stiffness;
 pub mod twolevel;
 
@@ -99,9 +100,14 @@ pub use kernels::simd::has_avx2_fma;
 pub use loads::{LoadError, Loads, ramp};
 pub use model::{Model, ModelError, ModelOptions, Solid, TetFormulation};
 pub use newton::{Newton, NewtonParams};
-pub use newton_krylov::{NewtonKrylov, NewtonKrylovParams, Preparation};
+pub use nk::{
+    ContinuationParams, LineSearchParams, NewtonKrylov, NewtonKrylovParams, Preparation,
+};
 pub use post::ElementMeasures;
-pub use solver::{Breakdown, Progress, Report, Solution, SolveError, Solver, load_scale};
+pub use step_bound::StepBound;
+pub use solver::{
+    Breakdown, LoadFailure, Progress, Report, Solution, SolveError, Solver, load_scale,
+};
 pub use twolevel::TwoLevelParams;
 
 #[cfg(test)]

@@ -121,3 +121,15 @@ mod tests {
         approx::assert_relative_eq!(von_mises(&s), 2.0 * 3f64.sqrt(), epsilon = 1e-15);
     }
 }
+
+impl Model {
+    /// Smallest element det F (experiment tracing only).
+    #[doc(hidden)]
+    pub fn min_jacobian_debug(&self, u: &[Vector3<f64>]) -> f64 {
+        let tets = self.tets.iter().map(|t| (&t.nodes[..], &t.g[..]));
+        let hexes = self.hexes.iter().map(|h| (&h.nodes[..], &h.g[..]));
+        tets.chain(hexes)
+            .map(|(n, g)| deformation_gradient(n, g, u).determinant())
+            .fold(f64::INFINITY, f64::min)
+    }
+}

@@ -176,6 +176,21 @@ pub enum SolveError {
         /// The tolerance (length units).
         tolerance: f64,
     },
+    /// The load continuation could not carry the prescribed displacements to their final
+    /// values: it converged up to a fraction of them, and says why it went no further.
+    #[error(
+        "converged to {:.3} of {load:.3} ({:.1} % of the load): {cause}",
+        reached * load,
+        reached * 100.0
+    )]
+    LoadNotCarried {
+        /// Load fraction λ of the last converged level.
+        reached: f64,
+        /// The full load's size (the largest prescribed displacement component).
+        load: f64,
+        /// Why the next level failed.
+        cause: LoadFailure,
+    },
     /// The tangent matrix could not be factorised.
     #[error(
         "tangent stiffness is singular or indefinite at load step {load_step}, iteration \
@@ -219,6 +234,7 @@ impl SolveError {
             SolveError::Diverged { .. } => "Diverged",
             SolveError::NoConvergence { .. } => "NoConvergence",
             SolveError::SingularTangent { .. } => "SingularTangent",
+            SolveError::LoadNotCarried { .. } => "LoadNotCarried",
             SolveError::Preconditioner { .. } => "Preconditioner",
             SolveError::Unsupported { .. } => "Unsupported",
         }
@@ -237,6 +253,36 @@ impl SolveError {
             _ => None,
         }
     }
+}
+
+/// Why a load level could not be solved (the cause in [`SolveError::LoadNotCarried`]).
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum LoadFailure {
+    /// Every step towards the next level was cut short by an element about to invert.
+    #[error(
+        "element {element} (id {element_id}) would invert under a larger load: the steps \
+         that keep it valid make no progress"
+    )]
+    WouldInvert {
+        /// Element index (mesh order).
+        element: usize,
+        /// External element id.
+        element_id: u64,
+    },
+    /// The residual stopped decreasing.
+    #[error(
+        "the residual stopped decreasing ({changes} contact nodes still changing state)"
+    )]
+    Stalled {
+        /// Contact nodes that changed state in the last iteration.
+        changes: usize,
+    },
+    /// The level's iteration budget was spent while the residual still decreased.
+    #[error("no convergence within {iterations} Newton iterations at the next load level")]
+    Budget {
+        /// Iterations spent.
+        iterations: usize,
+    },
 }
 
 /// A static solver: DR and Newton are interchangeable behind this trait.
