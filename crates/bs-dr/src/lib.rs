@@ -66,20 +66,19 @@
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the tensor formulas
 
+pub mod assembly;
 pub mod contact;
 pub mod dr;
-pub mod forces;
+pub mod element;
 mod kernels;
-pub mod krylov;
+pub mod linalg;
 pub mod loads;
+mod mass;
 pub mod model;
 pub mod newton;
 pub mod newton_krylov;
 pub mod post;
 pub mod solver;
-pub mod sparse;
-pub mod stiffness;
-pub mod twolevel;
 
 /// The constitutive laws of [`Solid`], re-exported.
 pub use bs_material;
@@ -89,20 +88,21 @@ pub use bs_mesh;
 /// The linear algebra of every nodal vector here.
 pub use nalgebra;
 
+#[doc(hidden)]
+pub use assembly::ReferenceWorkspace;
+pub use assembly::{Inversion, Workspace};
 pub use contact::{Contact, ContactProjection, ContactReport, NoContact, SurfaceFeature};
 pub use dr::{DrParams, DynamicRelaxation};
-pub use forces::{Inversion, Workspace};
-#[doc(hidden)]
-pub use kernels::reference::ReferenceWorkspace;
+pub use element::{Solid, TetFormulation};
 #[doc(hidden)]
 pub use kernels::simd::has_avx2_fma;
+pub use linalg::twolevel::TwoLevelParams;
 pub use loads::{LoadError, Loads, ramp};
-pub use model::{Model, ModelError, ModelOptions, Solid, TetFormulation};
+pub use model::{Model, ModelError, ModelOptions};
 pub use newton::{Newton, NewtonParams};
 pub use newton_krylov::{NewtonKrylov, NewtonKrylovParams, Preparation};
 pub use post::ElementMeasures;
 pub use solver::{Breakdown, Progress, Report, Solution, SolveError, Solver, load_scale};
-pub use twolevel::TwoLevelParams;
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -16,9 +16,10 @@ use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::sparse::{Pair, SparseColMat, SymbolicSparseColMat};
 
+use crate::assembly::tangent::element_tangent;
 use crate::contact::Contact;
 use crate::loads::Loads;
-use crate::model::{Model, TetFormulation};
+use crate::model::Model;
 use crate::solver::{Progress, Report, Solution, SolveError, Solver, check_param, load_scale};
 
 /// Parameters of [`Newton`].
@@ -54,101 +55,6 @@ impl Newton {
     }
 }
 
-/// Element data for the tangent: nodes, gradients, volume, material, optional hourglass.
-pub(crate) struct ElemView<'a> {
-    pub(crate) nodes: &'a [u32],
-    g: &'a [[f64; 3]],
-    vol: f64,
-    mat: usize,
-    hg: Option<&'a [[f64; 8]; 8]>,
-}
-
-impl Model {
-    pub(crate) fn elem_views(&self) -> impl Iterator<Item = ElemView<'_>> {
-        self.tets
-            .iter()
-            .map(|t| ElemView {
-                nodes: &t.nodes,
-                g: &t.g,
-                vol: t.vol,
-                mat: t.mat as usize,
-                hg: None,
-            })
-            .chain(self.hexes.iter().map(|h| ElemView {
-                nodes: &h.nodes,
-                g: &h.g,
-                vol: h.vol,
-                mat: h.mat as usize,
-                hg: Some(&h.hg),
-            }))
-    }
-
-    /// Consistent tangent of one element (3n×3n, row-major into `k`), in the same
-    /// formulation as the force kernels: `K_ab = V [ (g_a·S g_b) I + B_aᵀ ℂ B_b ] (+ K_hg)`.
-    /// Returns false if the element is inverted.
-    pub(crate) fn element_tangent(
-        &self,
-        e: &ElemView<'_>,
-        u: &[Vector3<f64>],
-        k: &mut [f64],
-    ) -> bool {
-        let nn = e.nodes.len();
-        let mut f = nalgebra::Matrix3::<f64>::identity();
-        for a in 0..nn {
-            let ua = u[e.nodes[a] as usize];
-            for i in 0..3 {
-                for j in 0..3 {
-                    f[(i, j)] += ua[i] * e.g[a][j];
-                }
-            }
-        }
-        let j = f.determinant();
-        if !(j > 0.0 && j.is_finite()) {
-            return false;
-        }
-        let c = f.transpose() * f;
-        let (s, d) = self.solids[e.mat].material.tangent_cj(&c, j);
-        // B_a (6×3): row (I,J) normal: F_kI g_I; shear: F_kI g_J + F_kJ g_I.
-        let mut b = [nalgebra::SMatrix::<f64, 6, 3>::zeros(); 8];
-        for a in 0..nn {
-            let g = e.g[a];
-            for (r, &(ii, jj)) in bs_material::VOIGT.iter().enumerate() {
-                for kk in 0..3 {
-                    b[a][(r, kk)] = if ii == jj {
-                        f[(kk, ii)] * g[ii]
-                    } else {
-                        f[(kk, ii)] * g[jj] + f[(kk, jj)] * g[ii]
-                    };
-                }
-            }
-        }
-        let n3 = 3 * nn;
-        for a in 0..nn {
-            for bb in 0..nn {
-                let geo = {
-                    let ga = nalgebra::Vector3::from(e.g[a]);
-                    let gb = nalgebra::Vector3::from(e.g[bb]);
-                    ga.dot(&(s * gb))
-                };
-                let mat = b[a].transpose() * d * b[bb];
-                for i in 0..3 {
-                    for jx in 0..3 {
-                        let mut v = e.vol * mat[(i, jx)];
-                        if i == jx {
-                            v += e.vol * geo;
-                            if let Some(hg) = e.hg {
-                                v += hg[a][bb];
-                            }
-                        }
-                        k[(3 * a + i) * n3 + 3 * bb + jx] = v;
-                    }
-                }
-            }
-        }
-        true
-    }
-}
-
 impl Solver for Newton {
     fn name(&self) -> &'static str {
         "newton"
@@ -174,7 +80,7 @@ impl Solver for Newton {
         if loads.node_count() != n {
             return Err(SolveError::LoadMismatch { expected: n, got: loads.node_count() });
         }
-        if model.options.tet == TetFormulation::T4Anp && !model.tets.is_empty() {
+        if model.elements.anp() {
             return Err(SolveError::Unsupported {
                 solver: "newton",
                 what: "T4ANP tetrahedra",
@@ -192,7 +98,7 @@ impl Solver for Newton {
         }
         // Sparsity pattern (lower triangle, duplicates summed by faer).
         let mut pairs = Vec::new();
-        for e in model.elem_views() {
+        for (_, e) in model.elements.iter() {
             for &na in e.nodes {
                 for &nb in e.nodes {
                     for i in 0..3 {
@@ -253,10 +159,11 @@ impl Solver for Newton {
                     rhs[(i, 0)] = -forces[d / 3][d % 3];
                 }
                 let mut pos = 0;
-                for e in model.elem_views() {
+                for (_, e) in model.elements.iter() {
                     let nn = e.nodes.len();
                     let n3 = 3 * nn;
-                    if !model.element_tangent(&e, &u, &mut ke[..n3 * n3]) {
+                    let material = &model.elements.solids[e.mat].material;
+                    if !element_tangent(material, &e, &u, &mut ke[..n3 * n3]) {
                         return Err(SolveError::SingularTangent { load_step: ls, iteration: it });
                     }
                     for a in 0..nn {

@@ -42,16 +42,16 @@ use std::time::Instant;
 use bs_mesh::{Point3, Vector3};
 use rayon::prelude::*;
 
+use crate::assembly::{Inversion, Workspace};
 use crate::contact::{Contact, ContactReport, SurfaceFeature};
-use crate::forces::{Inversion, Workspace};
-use crate::krylov::Gmres;
+use crate::linalg::krylov::Gmres;
+use crate::linalg::sparse::max_abs;
+use crate::linalg::twolevel::{Constraints, Projector, TwoLevel, TwoLevelParams};
 use crate::loads::Loads;
 use crate::model::Model;
 use crate::solver::{
     Breakdown, Progress, Report, Solution, SolveError, Solver, check_param, load_scale,
 };
-use crate::sparse::max_abs;
-use crate::twolevel::{Constraints, Projector, TwoLevel, TwoLevelParams};
 
 /// Parameters of [`NewtonKrylov`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -306,7 +306,9 @@ impl NewtonKrylov {
             return Err(SolveError::LoadMismatch { expected: n, got: loads.node_count() });
         }
         let fixed = fixed_projector(loads);
-        let preconditioner = TwoLevel::new(model, &fixed, self.params.preconditioner)
+        let k0 = model.linear_stiffness();
+        let (x, h) = (model.reference(), model.mean_edge());
+        let preconditioner = TwoLevel::new(k0, x, h, &fixed, self.params.preconditioner)
             .map_err(|e| SolveError::Preconditioner { reason: e.to_string() })?;
         let k = preconditioner.stiffness();
         let compliance = (0..n)
