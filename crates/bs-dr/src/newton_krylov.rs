@@ -717,8 +717,6 @@ impl NewtonKrylov {
                         steps: iteration,
                         err,
                         tolerance: tol,
-                        rho: 0.0,
-                        omega_min: 0.0,
                         contact: ContactReport {
                             nodes_in_contact: report.nodes_in_contact.max(last.nodes_in_contact),
                             max_penetration: max_penetration.max(last.max_penetration),

@@ -299,10 +299,11 @@ fn without_test_items(toks: Vec<Token>) -> (Vec<Token>, Vec<(usize, usize)>, Vec
                 k = skip_group(&toks, k);
             }
         }
-        if is_ident(&toks, k, "mod") && is_punct(&toks, k + 2, ';') {
-            if let Some(Tok::Ident(name)) = toks.get(k + 1).map(|t| &t.tok) {
-                children.push(name.clone());
-            }
+        if is_ident(&toks, k, "mod")
+            && is_punct(&toks, k + 2, ';')
+            && let Some(Tok::Ident(name)) = toks.get(k + 1).map(|t| &t.tok)
+        {
+            children.push(name.clone());
         }
         i = skip_item(&toks, i);
         let last = toks.get(i.saturating_sub(1)).map_or(usize::MAX, |t| t.line);
