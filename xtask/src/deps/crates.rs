@@ -76,7 +76,7 @@ pub fn check(metadata: &Value) -> Result<usize, String> {
         let name = p["name"].as_str().unwrap_or("?");
         let Some((_, allowed)) = ALLOWED.iter().find(|(n, _)| *n == name) else {
             problems.push(format!(
-                "crate '{name}' is not in the layering table of xtask/src/deps.rs: add it with the \
+                "crate '{name}' is not in the layering table of xtask/src/deps/crates.rs: add it with the \
                  crates it may depend on, and a paragraph in docs/ARCHITECTURE.md"
             ));
             continue;
