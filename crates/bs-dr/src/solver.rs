@@ -1,5 +1,8 @@
-//! What every solver shares: the [`Solver`] trait, the progress record passed to observers,
-//! the report, the solution and the typed errors.
+//! What every solver shares: the [`Solver`] trait that makes them interchangeable, the
+//! progress record passed to observers, the common summary ([`Report`]) and error
+//! ([`SolveError`]). Each solver also has its own parameters, info and error types
+//! (`DrParams`/`DrInfo`/`DrError`, `NewtonParams`/`NewtonInfo`/`NewtonError`), returned by its
+//! inherent `solve` and converted into the common ones by `From` behind the trait.
 
 use std::time::Duration;
 
@@ -45,10 +48,11 @@ pub struct Breakdown {
     pub contact: Duration,
 }
 
-/// Summary of a successful solve.
+/// The common summary of a successful solve, what every solver can say (its own info type
+/// says more: DR's convergence rate, Newton's load steps).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Report {
-    /// Solver name (`"dynamic-relaxation"`, `"newton"`).
+    /// Solver name (`"newton-krylov"`, `"dynamic-relaxation"`, `"newton"`).
     pub solver: &'static str,
     /// DR steps, or total Newton iterations.
     pub steps: usize,
@@ -56,10 +60,6 @@ pub struct Report {
     pub err: f64,
     /// The tolerance it was compared with (length units).
     pub tolerance: f64,
-    /// Final DR convergence rate ρ (Newton: 0).
-    pub rho: f64,
-    /// Final DR lowest-eigenvalue estimate `ω_min` in units of 1/h (Newton: 0).
-    pub omega_min: f64,
     /// Contact report of the last step (Newton–Krylov: nodes held on the surface at the end,
     /// and the largest penetration of any iterate).
     pub contact: ContactReport,
@@ -74,13 +74,22 @@ pub struct Report {
     pub elapsed: Duration,
 }
 
-/// Displacements and report of a successful solve.
+/// Displacements and report of a successful solve: the common [`Report`] through the
+/// [`Solver`] trait, or the solver's own info (`DrInfo`, `NewtonInfo`) from its inherent
+/// `solve`.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Solution {
+pub struct Solution<R = Report> {
     /// Nodal displacements, indexed like the mesh nodes.
     pub displacements: Vec<Vector3<f64>>,
     /// Summary.
-    pub report: Report,
+    pub report: R,
+}
+
+impl<R: Into<Report>> Solution<R> {
+    /// The same solution with the common summary.
+    pub fn into_common(self) -> Solution {
+        Solution { displacements: self.displacements, report: self.report.into() }
+    }
 }
 
 /// Why a solve stopped without an answer. Every variant names the cause and the fix.
@@ -302,17 +311,38 @@ pub trait Solver {
     ) -> Result<Solution, SolveError>;
 }
 
+/// A solver parameter out of range: every solver's error has a variant for it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct InvalidParam {
+    pub name: &'static str,
+    pub value: f64,
+    pub requirement: &'static str,
+}
+
+impl From<InvalidParam> for SolveError {
+    fn from(p: InvalidParam) -> Self {
+        SolveError::InvalidParams { name: p.name, value: p.value, requirement: p.requirement }
+    }
+}
+
+/// `Ok` if `ok` and `value` is finite, else the parameter `name` with what it must satisfy.
+pub(crate) fn param(
+    name: &'static str,
+    value: f64,
+    ok: bool,
+    requirement: &'static str,
+) -> Result<(), InvalidParam> {
+    if ok && value.is_finite() { Ok(()) } else { Err(InvalidParam { name, value, requirement }) }
+}
+
+/// [`param`] as the common error (the solvers that use the common types).
 pub(crate) fn check_param(
     name: &'static str,
     value: f64,
     ok: bool,
     requirement: &'static str,
 ) -> Result<(), SolveError> {
-    if ok && value.is_finite() {
-        Ok(())
-    } else {
-        Err(SolveError::InvalidParams { name, value, requirement })
-    }
+    Ok(param(name, value, ok, requirement)?)
 }
 
 /// Length scale of a problem: the largest prescribed displacement component, or the

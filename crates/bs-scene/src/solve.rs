@@ -103,24 +103,23 @@ pub fn solve_composed(
                 &mut observe,
             )
         }
+        // The baseline and the reference through the common trait: their own info and
+        // errors become the common report and error.
         SolverKind::Dr => {
             let defaults = DrParams::default();
-            DynamicRelaxation::new(DrParams {
+            let dr = DynamicRelaxation::new(DrParams {
                 tolerance: relative,
                 step_fraction: s.step_fraction,
                 max_steps: s.max_steps.unwrap_or(defaults.max_steps),
                 ramp_steps: s.ramp_steps,
                 ..defaults
-            })
-            .solve(&c.model, &c.loads, contact, &mut observe)
+            });
+            Solver::solve(&dr, &c.model, &c.loads, contact, &mut observe)
         }
         SolverKind::Newton => {
-            Newton::new(NewtonParams { tolerance: relative, ..NewtonParams::default() }).solve(
-                &c.model,
-                &c.loads,
-                contact,
-                &mut observe,
-            )
+            let newton =
+                Newton::new(NewtonParams { tolerance: relative, ..NewtonParams::default() });
+            Solver::solve(&newton, &c.model, &c.loads, contact, &mut observe)
         }
     }?;
     Ok((solution, max_penetration))

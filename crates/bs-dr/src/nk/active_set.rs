@@ -7,7 +7,7 @@ use bs_mesh::{Point3, Vector3};
 
 use crate::contact::{Contact, SurfaceFeature};
 use crate::solver::SolveError;
-use crate::twolevel::{Constraints, Projector, TwoLevel};
+use crate::linalg::twolevel::{Constraints, Projector, TwoLevel};
 
 /// The contact state of one node for one iteration.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -11,11 +11,11 @@ use bs_mesh::Vector3;
 use rayon::prelude::*;
 
 use super::Work;
-use crate::forces::{Inversion, Workspace};
-use crate::krylov::{Gmres, GmresInfo};
+use crate::assembly::{Inversion, Workspace};
+use crate::linalg::krylov::{Gmres, GmresInfo};
 use crate::model::Model;
-use crate::sparse::max_abs;
-use crate::twolevel::{Constraints, TwoLevel, TwoLevelScratch};
+use crate::linalg::sparse::max_abs;
+use crate::linalg::twolevel::{Constraints, TwoLevel, TwoLevelScratch};
 
 /// Internal forces with the count and time kept.
 pub(crate) fn forces(

@@ -17,7 +17,7 @@ use super::active_set::cannot_project;
 use crate::contact::Contact;
 use crate::model::Model;
 use crate::solver::SolveError;
-use crate::twolevel::Projector;
+use crate::linalg::twolevel::Projector;
 
 /// The Euclidean norm of the natural residual (see the module documentation).
 #[allow(clippy::too_many_arguments)]

@@ -68,14 +68,14 @@ use self::forcing::Forcing;
 use self::linear::{LinearBuffers, Linearisation, forces};
 use self::termination::{Failure, Iteration, Termination, Verdict};
 use crate::contact::{Contact, ContactReport};
-use crate::forces::{Inversion, Workspace};
-use crate::krylov::Gmres;
+use crate::assembly::{Inversion, Workspace};
+use crate::linalg::krylov::Gmres;
 use crate::loads::Loads;
 use crate::model::Model;
 use crate::solver::{
     Breakdown, LoadFailure, Progress, Report, Solution, SolveError, Solver, load_scale,
 };
-use crate::twolevel::{Constraints, Projector, TwoLevel};
+use crate::linalg::twolevel::{Constraints, Projector, TwoLevel};
 
 pub use self::params::{ContinuationParams, LineSearchParams, NewtonKrylovParams};
 
@@ -252,7 +252,9 @@ impl NewtonKrylov {
             return Err(SolveError::LoadMismatch { expected: n, got: loads.node_count() });
         }
         let fixed = fixed_projector(loads);
-        let preconditioner = TwoLevel::new(model, &fixed, self.params.preconditioner)
+        let k0 = model.linear_stiffness();
+        let (x, h) = (model.reference(), model.mean_edge());
+        let preconditioner = TwoLevel::new(k0, x, h, &fixed, self.params.preconditioner)
             .map_err(|e| SolveError::Preconditioner { reason: e.to_string() })?;
         let k = preconditioner.stiffness();
         let compliance = (0..n)
@@ -851,8 +853,6 @@ impl NewtonKrylov {
                 steps: work.iterations,
                 err,
                 tolerance: pb.tol,
-                rho: 0.0,
-                omega_min: 0.0,
                 contact: ContactReport {
                     nodes_in_contact: it.in_contact.max(last.nodes_in_contact),
                     max_penetration: it.max_penetration.max(last.max_penetration),

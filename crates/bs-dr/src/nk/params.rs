@@ -3,7 +3,7 @@
 //! search.
 
 use crate::solver::{SolveError, check_param};
-use crate::twolevel::TwoLevelParams;
+use crate::linalg::twolevel::TwoLevelParams;
 
 /// How the prescribed displacements are applied: in increments of the load fraction λ
 /// (0 = the start state's prescribed values, 1 = the final ones).
