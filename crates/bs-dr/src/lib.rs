@@ -105,12 +105,14 @@ pub use loads::{LoadError, Loads, ramp};
 pub use model::{Model, ModelError, ModelOptions};
 pub use newton::{Newton, NewtonError, NewtonInfo, NewtonParams};
 pub use nk::{
-    ContinuationParams, LineSearchParams, NewtonKrylov, NewtonKrylovParams, Preparation,
+    ContinuationParams, LineSearchParams, NewtonKrylov, NewtonKrylovError, NewtonKrylovInfo,
+    NewtonKrylovParams, Preparation,
 };
 pub use assembly::StepBound;
 pub use post::ElementMeasures;
 pub use solver::{
-    Breakdown, LoadFailure, Progress, Report, Solution, SolveError, Solver, load_scale,
+    Breakdown, ContinuationSummary, LoadFailure, Progress, Report, Solution, SolveError, Solver,
+    load_scale,
 };
 
 #[cfg(test)]

@@ -107,6 +107,15 @@ impl Loads {
         Ok(())
     }
 
+    /// The same constraints with every prescribed value multiplied by `factor` (the loads
+    /// at load fraction `factor` of a continuation).
+    pub fn scaled(&self, factor: f64) -> Loads {
+        Loads {
+            constrained: self.constrained.clone(),
+            value: self.value.iter().map(|v| v * factor).collect(),
+        }
+    }
+
     /// Number of nodes.
     pub fn node_count(&self) -> usize {
         self.constrained.len()

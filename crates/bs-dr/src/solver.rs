@@ -72,6 +72,19 @@ pub struct Report {
     pub breakdown: Breakdown,
     /// Wall-clock time of the solve.
     pub elapsed: Duration,
+    /// How the load was carried (Newton–Krylov's continuation; `None` for the others).
+    pub continuation: Option<ContinuationSummary>,
+}
+
+/// How a continuation carried the load to its end.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ContinuationSummary {
+    /// Load levels converged (1: the whole load at once).
+    pub load_levels: usize,
+    /// Failed attempts at a level retried with a smaller increment.
+    pub cutbacks: usize,
+    /// Dynamic Relaxation steps of the fallback (0: not needed).
+    pub fallback_steps: usize,
 }
 
 /// Displacements and report of a successful solve: the common [`Report`] through the
@@ -186,11 +199,14 @@ pub enum SolveError {
         tolerance: f64,
     },
     /// The load continuation could not carry the prescribed displacements to their final
-    /// values: it converged up to a fraction of them, and says why it went no further.
+    /// values: it converged up to a fraction of them and says why it went no further, and
+    /// what its fallback (Dynamic Relaxation from the last converged state) met, if it ran.
     #[error(
-        "converged to {:.3} of {load:.3} ({:.1} % of the load): {cause}",
-        reached * load,
-        reached * 100.0
+        "converged to {} of {} ({:.1} % of the load): {cause}{}",
+        length(reached * load),
+        length(*load),
+        reached * 100.0,
+        fallback_text(fallback)
     )]
     LoadNotCarried {
         /// Load fraction λ of the last converged level.
@@ -199,6 +215,8 @@ pub enum SolveError {
         load: f64,
         /// Why the next level failed.
         cause: LoadFailure,
+        /// How the fallback from the last converged state stopped (`None`: not run).
+        fallback: Option<Box<SolveError>>,
     },
     /// The tangent matrix could not be factorised.
     #[error(
@@ -261,6 +279,24 @@ impl SolveError {
             SolveError::SingularTangent { iteration, .. } => Some(*iteration),
             _ => None,
         }
+    }
+}
+
+/// A length for a message: three decimals at most, trailing zeros dropped (36.2, 40).
+fn length(x: f64) -> String {
+    let s = format!("{x:.3}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
+fn fallback_text(fallback: &Option<Box<SolveError>>) -> String {
+    match fallback.as_deref() {
+        None => String::new(),
+        Some(e @ SolveError::ElementInverted { element, element_id, .. }) => format!(
+            "; Dynamic Relaxation from that state stopped too ({}): the mesh cannot carry this \
+             load around element {element} (id {element_id}) — refine it there, or reduce the load",
+            e.kind()
+        ),
+        Some(e) => format!("; Dynamic Relaxation from that state stopped too: {e}"),
     }
 }
 
@@ -335,15 +371,6 @@ pub(crate) fn param(
     if ok && value.is_finite() { Ok(()) } else { Err(InvalidParam { name, value, requirement }) }
 }
 
-/// [`param`] as the common error (the solvers that use the common types).
-pub(crate) fn check_param(
-    name: &'static str,
-    value: f64,
-    ok: bool,
-    requirement: &'static str,
-) -> Result<(), SolveError> {
-    Ok(param(name, value, ok, requirement)?)
-}
 
 /// Length scale of a problem: the largest prescribed displacement component, or the
 /// bounding-box diagonal when nothing moves. Solver tolerances are relative to it; callers

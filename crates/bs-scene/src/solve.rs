@@ -68,7 +68,8 @@ pub fn prepare_solver(c: &mut Composed, s: &SolveSettings) -> Result<(), SolveEr
     if s.kind == SolverKind::NewtonKrylov
         && c.preparation.as_ref().is_none_or(|p| !p.fits(&c.loads))
     {
-        c.preparation = Some(newton_krylov(c, s).prepare(&c.model, &c.loads)?);
+        c.preparation =
+            Some(newton_krylov(c, s).prepare(&c.model, &c.loads).map_err(SolveError::from)?);
     }
     Ok(())
 }
@@ -95,13 +96,10 @@ pub fn solve_composed(
     let solution = match s.kind {
         SolverKind::NewtonKrylov => {
             let prep = c.preparation.as_ref().expect("prepared above");
-            newton_krylov_params(s, c.load_scale).solve_prepared(
-                &c.model,
-                &c.loads,
-                prep,
-                contact,
-                &mut observe,
-            )
+            newton_krylov_params(s, c.load_scale)
+                .solve_prepared(&c.model, &c.loads, prep, contact, &mut observe)
+                .map(Solution::into_common)
+                .map_err(SolveError::from)
         }
         // The baseline and the reference through the common trait: their own info and
         // errors become the common report and error.

@@ -40,7 +40,7 @@ impl Elements {
         fraction: f64,
         alpha_max: f64,
     ) -> StepBound {
-        let anp = self.tet == TetFormulation::T4Anp && std::env::var("BS_NODAL").is_ok();
+        let anp = self.tet == TetFormulation::T4Anp;
         let tet_fraction = if anp { ELEMENT_FLOOR } else { fraction };
         let tets = self
             .tets

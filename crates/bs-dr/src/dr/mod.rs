@@ -58,21 +58,24 @@ struct Setup {
     inv_m: Vec<f64>,
     free: Vec<usize>,
     fixed: Vec<usize>,
+    /// Start and final values of the constrained DOFs (the ramp goes from one to the other).
+    fixed_start: Vec<f64>,
     fixed_value: Vec<f64>,
 }
 
 impl Setup {
-    fn new(model: &Model, loads: &Loads, step_fraction: f64) -> Self {
+    fn new(model: &Model, loads: &Loads, step_fraction: f64, start: &[Vector3<f64>]) -> Self {
         let mut masses = vec![0.0; model.node_count()];
         model.dr_masses_into(step_fraction, &mut masses);
         let inv_m = masses.iter().map(|&m| if m > 0.0 { 1.0 / m } else { 0.0 }).collect();
         let (free, fixed) = loads.split_dofs();
         let fixed_value = fixed.iter().map(|&d| loads.value(d / 3, d % 3)).collect();
-        Setup { masses, inv_m, free, fixed, fixed_value }
+        let fixed_start = fixed.iter().map(|&d| start[d / 3][d % 3]).collect();
+        Setup { masses, inv_m, free, fixed, fixed_start, fixed_value }
     }
 
     /// `u⁺ = u + ρ²(u − u⁻) − ¼(1 + ρ)² M⁻¹ f` on the free DOFs; the fixed ones at `load`
-    /// times their final values.
+    /// of the way from their start to their final values.
     fn step(&self, s: &mut State, rho: f64, load: f64) {
         let beta = 0.25 * (1.0 + rho) * (1.0 + rho);
         let r2 = rho * rho;
@@ -83,7 +86,8 @@ impl Setup {
                 u[a][c] + r2 * (u[a][c] - u_prev[a][c]) - beta * f[a][c] * self.inv_m[a];
         }
         for (i, &d) in self.fixed.iter().enumerate() {
-            s.u_next[d / 3][d % 3] = self.fixed_value[i] * load;
+            let (a, b) = (self.fixed_start[i], self.fixed_value[i]);
+            s.u_next[d / 3][d % 3] = a + (b - a) * load;
         }
     }
 }
@@ -99,12 +103,12 @@ struct State {
 }
 
 impl State {
-    fn new(model: &Model) -> Self {
+    fn new(model: &Model, start: &[Vector3<f64>]) -> Self {
         let zero = vec![Vector3::<f64>::zeros(); model.node_count()];
         State {
-            u: zero.clone(),
-            u_prev: zero.clone(),
-            u_next: zero.clone(),
+            u: start.to_vec(),
+            u_prev: start.to_vec(),
+            u_next: start.to_vec(),
             f: zero,
             positions: model.reference().to_vec(),
             ws: model.workspace(),
@@ -170,21 +174,37 @@ impl DynamicRelaxation {
         contact: &mut dyn Contact,
         observer: &mut dyn FnMut(&Progress),
     ) -> Result<Solution<DrInfo>, DrError> {
+        let zero = vec![Vector3::zeros(); model.node_count()];
+        self.solve_from(model, &zero, loads, contact, observer)
+    }
+
+    /// [`solve`](Self::solve) from the displacements `start` (at rest) instead of zero: the
+    /// prescribed components ramp from their values in `start` to those of `loads` (the
+    /// fallback of Newton–Krylov's continuation, which hands over its last converged state).
+    pub fn solve_from(
+        &self,
+        model: &Model,
+        start: &[Vector3<f64>],
+        loads: &Loads,
+        contact: &mut dyn Contact,
+        observer: &mut dyn FnMut(&Progress),
+    ) -> Result<Solution<DrInfo>, DrError> {
         let p = self.params;
         p.validate()?;
         let n = model.node_count();
-        if loads.node_count() != n {
-            return Err(DrError::LoadMismatch { expected: n, got: loads.node_count() });
+        if loads.node_count() != n || start.len() != n {
+            let got = if start.len() != n { start.len() } else { loads.node_count() };
+            return Err(DrError::LoadMismatch { expected: n, got });
         }
-        let start = Instant::now();
-        let setup = Setup::new(model, loads, p.step_fraction);
+        let start_time = Instant::now();
+        let setup = Setup::new(model, loads, p.step_fraction, start);
         let scale = load_scale(model, loads);
         let tol = p.tolerance * scale;
         let ramp_steps = p.ramp_steps.max(1);
         let omega = Self::omega_guess(model, &setup.masses);
         let mut rayleigh = RayleighEstimator::new(n, omega, p.rho, ramp_steps, p.snapshot_interval);
         let mut guard = GrowthGuard::new(p.step_fraction, p.divergence_factor * scale);
-        let mut s = State::new(model);
+        let mut s = State::new(model, start);
         let (mut maxd, mut below, mut err) = (0.0f64, 0usize, f64::INFINITY);
         for step in 1..=p.max_steps {
             // Forces at the state after `step − 1` steps, and a Rayleigh snapshot if due.
@@ -219,7 +239,7 @@ impl DynamicRelaxation {
                     rho,
                     omega_min: rayleigh.omega(),
                     contact: contact_report,
-                    elapsed: start.elapsed(),
+                    elapsed: start_time.elapsed(),
                 };
                 return Ok(Solution { displacements: s.u, report: info });
             }

@@ -39,6 +39,7 @@ impl From<DrInfo> for Report {
             linear_iterations: 0,
             breakdown: Default::default(),
             elapsed: i.elapsed,
+            continuation: None,
         }
     }
 }

@@ -6,7 +6,7 @@
 use bs_mesh::{Point3, Vector3};
 
 use crate::contact::{Contact, SurfaceFeature};
-use crate::solver::SolveError;
+use super::outcome::NewtonKrylovError;
 use crate::linalg::twolevel::{Constraints, Projector, TwoLevel};
 
 /// The contact state of one node for one iteration.
@@ -142,14 +142,6 @@ pub(crate) struct ActiveSet {
     before_previous: Vec<Active>,
 }
 
-pub(crate) fn cannot_project() -> SolveError {
-    SolveError::Unsupported {
-        solver: "newton-krylov",
-        what: "a contact handler that cannot project points",
-        fix: "use a handler with exact projection, or the Dynamic Relaxation solver",
-    }
-}
-
 impl ActiveSet {
     /// Every one of `k` contact nodes free.
     pub(crate) fn new(k: usize) -> Self {
@@ -167,7 +159,7 @@ impl ActiveSet {
         contact: &mut dyn Contact,
         nodes: &[usize],
         s: &NodeState<'_>,
-    ) -> Result<SetChange, SolveError> {
+    ) -> Result<SetChange, NewtonKrylovError> {
         let mut change = SetChange::default();
         for (k, &a) in nodes.iter().enumerate() {
             let x = s.reference[a] + s.u[a];
@@ -183,7 +175,7 @@ impl ActiveSet {
                     Active::Held { target: proj.point, feature: proj.feature }
                 }
                 Some(_) => Active::Free,
-                None => return Err(cannot_project()),
+                None => return Err(NewtonKrylovError::cannot_project()),
             };
             if !state.same_as(&self.previous[k]) {
                 change.changes += 1;

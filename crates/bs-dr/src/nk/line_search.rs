@@ -11,7 +11,7 @@
 //! cycle where a rejected one would stop.
 
 use super::params::LineSearchParams;
-use crate::solver::SolveError;
+use super::outcome::NewtonKrylovError;
 
 /// How a line search ended.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -45,8 +45,8 @@ pub(crate) fn search(
     first: f64,
     phi: f64,
     accept_first: bool,
-    eval: &mut dyn FnMut(f64) -> Result<Option<f64>, SolveError>,
-) -> Result<(Outcome, f64), SolveError> {
+    eval: &mut dyn FnMut(f64) -> Result<Option<f64>, NewtonKrylovError>,
+) -> Result<(Outcome, f64), NewtonKrylovError> {
     let mut alpha = first;
     let mut best: Option<(f64, f64)> = None; // (merit, alpha)
     let mut last = f64::NAN;

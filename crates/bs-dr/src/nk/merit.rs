@@ -13,10 +13,9 @@
 use bs_mesh::Vector3;
 use rayon::prelude::*;
 
-use super::active_set::cannot_project;
+use super::outcome::NewtonKrylovError;
 use crate::contact::Contact;
 use crate::model::Model;
-use crate::solver::SolveError;
 use crate::linalg::twolevel::Projector;
 
 /// The Euclidean norm of the natural residual (see the module documentation).
@@ -30,7 +29,7 @@ pub(crate) fn natural_residual(
     gamma: &[f64],
     pi: &Projector,
     contact: &mut dyn Contact,
-) -> Result<f64, SolveError> {
+) -> Result<f64, NewtonKrylovError> {
     let reference = model.reference();
     // Free nodes: the fixed components are projected out. Fixed-size chunks summed in order:
     // the same value for any thread count.
@@ -51,7 +50,7 @@ pub(crate) fn natural_residual(
     for (k, &a) in contact_nodes.iter().enumerate() {
         let x = reference[a] + u[a];
         let y = x - pi.matrix[a] * f[a] * gamma[a];
-        let proj = contact.project(k, &y).ok_or_else(cannot_project)?;
+        let proj = contact.project(k, &y).ok_or_else(NewtonKrylovError::cannot_project)?;
         let target = if proj.outside { proj.point } else { y };
         m += (x - target).norm_squared();
     }

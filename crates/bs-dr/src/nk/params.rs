@@ -2,7 +2,7 @@
 //! of its two named parts that a user may want to tune, the load continuation and the line
 //! search.
 
-use crate::solver::{SolveError, check_param};
+use crate::solver::{InvalidParam, param};
 use crate::linalg::twolevel::TwoLevelParams;
 
 /// How the prescribed displacements are applied: in increments of the load fraction λ
@@ -25,7 +25,8 @@ pub struct ContinuationParams {
     pub cutback: f64,
     /// Failed attempts allowed at one load level before the fallback. Default 5.
     pub max_cutbacks: usize,
-    /// Newton iterations allowed at one load level before it counts as failed. Default 30.
+    /// Newton iterations allowed at one load level after its last load step before it counts
+    /// as failed. Default 30.
     pub level_iterations: usize,
     /// Iterations without a 1 % decrease of the best residual at a level after which it
     /// counts as failed (stalled). Default 8.
@@ -33,6 +34,12 @@ pub struct ContinuationParams {
     /// Tolerance of the intermediate load levels as a multiple of the final one (they only
     /// have to be good starting points). Default 10.
     pub intermediate_tolerance: f64,
+    /// Equilibrium iterations at most between two load steps of a level (fewer when the
+    /// residual a load step left has fallen tenfold). Default 3.
+    pub equilibrium_iterations: usize,
+    /// After `max_cutbacks` failed attempts at one level: Dynamic Relaxation from the last
+    /// converged state to the full load, before giving up. Default true.
+    pub fallback: bool,
 }
 
 impl Default for ContinuationParams {
@@ -47,6 +54,8 @@ impl Default for ContinuationParams {
             level_iterations: 30,
             stall_iterations: 8,
             intermediate_tolerance: 10.0,
+            equilibrium_iterations: 3,
+            fallback: true,
         }
     }
 }
@@ -78,7 +87,7 @@ pub struct NewtonKrylovParams {
     /// largest prescribed displacement component, or the bounding-box diagonal if none).
     /// Default 1e-6.
     pub tolerance: f64,
-    /// Newton iterations allowed in all (over every load level). Default 200.
+    /// Newton iterations allowed in all (over every load level). Default 300.
     pub max_iterations: usize,
     /// GMRES iterations allowed per Newton iteration. Default 200.
     pub max_linear_iterations: usize,
@@ -106,7 +115,7 @@ impl Default for NewtonKrylovParams {
     fn default() -> Self {
         NewtonKrylovParams {
             tolerance: 1e-6,
-            max_iterations: 200,
+            max_iterations: 300,
             max_linear_iterations: 200,
             restart: 40,
             forcing_max: 0.1,
@@ -120,68 +129,68 @@ impl Default for NewtonKrylovParams {
     }
 }
 
-fn open_unit(name: &'static str, v: f64) -> Result<(), SolveError> {
-    check_param(name, v, v > 0.0 && v < 1.0, "must lie in (0, 1)")
+fn open_unit(name: &'static str, v: f64) -> Result<(), InvalidParam> {
+    param(name, v, v > 0.0 && v < 1.0, "must lie in (0, 1)")
 }
 
-fn at_least_one(name: &'static str, v: usize) -> Result<(), SolveError> {
-    check_param(name, v as f64, v >= 1, "must be >= 1")
+fn at_least_one(name: &'static str, v: usize) -> Result<(), InvalidParam> {
+    param(name, v as f64, v >= 1, "must be >= 1")
 }
 
 impl NewtonKrylovParams {
     /// Checks every parameter's range.
-    pub fn validate(&self) -> Result<(), SolveError> {
-        check_param("tolerance", self.tolerance, self.tolerance > 0.0, "must be > 0")?;
+    pub(crate) fn validate(&self) -> Result<(), InvalidParam> {
+        param("tolerance", self.tolerance, self.tolerance > 0.0, "must be > 0")?;
         at_least_one("max_iterations", self.max_iterations)?;
         at_least_one("max_linear_iterations", self.max_linear_iterations)?;
         at_least_one("restart", self.restart)?;
         open_unit("forcing_max", self.forcing_max)?;
         open_unit("forcing_active_set", self.forcing_active_set)?;
-        check_param(
+        param(
             "forcing_min",
             self.forcing_min,
             self.forcing_min > 0.0 && self.forcing_min <= self.forcing_max,
             "must lie in (0, forcing_max]",
         )?;
-        check_param(
+        param(
             "divergence_factor",
             self.divergence_factor,
             self.divergence_factor > 1.0,
             "must be > 1",
         )?;
         let c = &self.continuation;
-        check_param(
+        param(
             "continuation.initial_increment",
             c.initial_increment,
             c.initial_increment > 0.0 && c.initial_increment <= 1.0,
             "must lie in (0, 1]",
         )?;
-        check_param("continuation.growth", c.growth, c.growth >= 1.0, "must be >= 1")?;
+        param("continuation.growth", c.growth, c.growth >= 1.0, "must be >= 1")?;
         open_unit("continuation.cutback", c.cutback)?;
         at_least_one("continuation.level_iterations", c.level_iterations)?;
         at_least_one("continuation.stall_iterations", c.stall_iterations)?;
-        check_param(
+        param(
             "continuation.intermediate_tolerance",
             c.intermediate_tolerance,
             c.intermediate_tolerance >= 1.0,
             "must be >= 1",
         )?;
         let l = &self.line_search;
-        check_param(
+        param(
             "line_search.volume_fraction",
             l.volume_fraction,
             (0.0..1.0).contains(&l.volume_fraction),
             "must lie in [0, 1)",
         )?;
         open_unit("line_search.armijo", l.armijo)?;
-        check_param(
+        param(
             "line_search.min_fraction",
             l.min_fraction,
             l.min_fraction > 0.0 && l.min_fraction <= 1.0,
             "must lie in (0, 1]",
         )?;
         let t = &self.preconditioner;
-        check_param("aggregate_size", t.aggregate_size, t.aggregate_size > 0.0, "must be > 0")?;
+        param("aggregate_size", t.aggregate_size, t.aggregate_size > 0.0, "must be > 0")?;
         at_least_one("degree", t.degree)?;
         open_unit("lower", t.lower)?;
         Ok(())

@@ -23,7 +23,7 @@ pub(crate) struct Iteration {
 /// Why a level failed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Failure {
-    /// Its iteration budget was spent.
+    /// Its iteration budget after the last load step was spent.
     Budget,
     /// The residual did not decrease by 1 % in `stall_iterations` iterations.
     Stalled,
@@ -44,20 +44,24 @@ pub(crate) struct Termination {
     budget: usize,
     stall: usize,
     iterations: usize,
+    since_load: usize,
     best: f64,
     since_best: usize,
 }
 
 impl Termination {
-    /// A level with tolerance `tol`, at most `budget` iterations, failing after `stall`
-    /// iterations without progress.
+    /// A level with tolerance `tol`, at most `budget` iterations after its last load step,
+    /// failing after `stall` iterations without progress.
     pub(crate) fn new(tol: f64, budget: usize, stall: usize) -> Self {
-        Termination { tol, budget, stall, iterations: 0, best: f64::INFINITY, since_best: 0 }
-    }
-
-    /// A new tolerance (the level's target changed).
-    pub(crate) fn set_tolerance(&mut self, tol: f64) {
-        self.tol = tol;
+        Termination {
+            tol,
+            budget,
+            stall,
+            iterations: 0,
+            since_load: 0,
+            best: f64::INFINITY,
+            since_best: 0,
+        }
     }
 
     /// Iterations so far at this level.
@@ -67,6 +71,7 @@ impl Termination {
 
     pub(crate) fn check(&mut self, it: &Iteration) -> Verdict {
         self.iterations += 1;
+        self.since_load = if it.loaded { 0 } else { self.since_load + 1 };
         if it.err < self.tol && !it.loading && it.changes == 0 && it.penetration < self.tol {
             return Verdict::Converged;
         }
@@ -78,7 +83,7 @@ impl Termination {
         }
         if self.since_best >= self.stall {
             Verdict::Failed(Failure::Stalled)
-        } else if self.iterations >= self.budget {
+        } else if self.since_load >= self.budget {
             Verdict::Failed(Failure::Budget)
         } else {
             Verdict::Continue
@@ -115,10 +120,26 @@ mod tests {
     }
 
     #[test]
-    fn the_budget_ends_a_level_that_still_progresses() {
+    fn the_budget_ends_a_level_that_still_progresses_but_load_steps_restart_it() {
         let mut t = Termination::new(1e-3, 3, 8);
         assert_eq!(t.check(&it(1.0, 3.0)), Verdict::Continue);
         assert_eq!(t.check(&it(1.0, 2.0)), Verdict::Continue);
-        assert_eq!(t.check(&it(1.0, 1.0)), Verdict::Failed(Failure::Budget));
+        let loaded = Iteration { loaded: true, loading: true, ..it(1.0, 9.0) };
+        assert_eq!(t.check(&loaded), Verdict::Continue);
+        assert_eq!(t.check(&it(1.0, 1.0)), Verdict::Continue);
+        assert_eq!(t.check(&it(1.0, 0.5)), Verdict::Continue);
+        assert_eq!(t.check(&it(1.0, 0.2)), Verdict::Failed(Failure::Budget));
+    }
+
+    #[test]
+    fn a_load_step_starts_a_new_descent() {
+        let mut t = Termination::new(1e-3, 30, 2);
+        assert_eq!(t.check(&it(1.0, 1.0)), Verdict::Continue);
+        // A load step raises the residual: not a stall.
+        let loaded = Iteration { loaded: true, loading: true, ..it(1.0, 50.0) };
+        assert_eq!(t.check(&loaded), Verdict::Continue);
+        assert_eq!(t.check(&it(1.0, 40.0)), Verdict::Continue);
+        assert_eq!(t.check(&it(1.0, 39.9)), Verdict::Continue);
+        assert_eq!(t.check(&it(1.0, 39.8)), Verdict::Failed(Failure::Stalled));
     }
 }
