@@ -781,18 +781,22 @@ mod tests {
         for eta in ["0.01", "0.1", "0.5", "0.9"] {
             assert_eq!(get("Newton-Krylov forcing", eta), Some(Verdict::Converged), "{eta}");
         }
-        // A 40 mm block indented 34 mm by a 20 mm patch cannot keep its elements positive:
-        // DR's explicit ramp inverts one; Newton–Krylov, whose steps never invert an
-        // element, must stop with a guard (which one — the load it could not carry, or its
-        // iteration budget — is the solver's to say, and the map records it).
+        // A 40 mm block indented 34 mm by a 20 mm patch: DR's explicit ramp inverts an
+        // element; Newton–Krylov, whose steps never invert one and whose load steps are cut
+        // back instead, reaches the equilibrium (verified: residual, every J > 0), which the
+        // energy's J → 0 barrier guarantees exists. The DR failure is the solver's, not the
+        // mesh's.
         assert!(
             matches!(get("indentation depth (40 mm block), DR", "34 mm"), Some(Verdict::Guard(g)) if g == "ElementInverted"),
             "{cells:#?}"
         );
-        assert!(
-            matches!(get("indentation depth (40 mm block), Newton-Krylov", "34 mm"), Some(Verdict::Guard(g)) if g != "ContactCheck"),
-            "{cells:#?}"
-        );
+        for depth in ["24 mm", "30 mm", "34 mm"] {
+            assert_eq!(
+                get("indentation depth (40 mm block), Newton-Krylov", depth),
+                Some(Verdict::Converged),
+                "{depth}: {cells:#?}"
+            );
+        }
         // T4ANP does not lock: both solvers converge up to ν = 0.499.
         for solver in ["DR", "Newton-Krylov"] {
             for nu in ["0.45", "0.49", "0.495", "0.499"] {

@@ -94,6 +94,7 @@ pub use nalgebra;
 
 #[doc(hidden)]
 pub use assembly::ReferenceWorkspace;
+pub use assembly::StepBound;
 pub use assembly::{Inversion, Workspace};
 pub use contact::{Contact, ContactProjection, ContactReport, NoContact, SurfaceFeature};
 pub use dr::{DrError, DrInfo, DrParams, DynamicRelaxation};
@@ -108,7 +109,6 @@ pub use nk::{
     ContinuationParams, LineSearchParams, NewtonKrylov, NewtonKrylovError, NewtonKrylovInfo,
     NewtonKrylovParams, Preparation,
 };
-pub use assembly::StepBound;
 pub use post::ElementMeasures;
 pub use solver::{
     Breakdown, ContinuationSummary, LoadFailure, Progress, Report, Solution, SolveError, Solver,

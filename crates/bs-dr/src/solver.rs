@@ -315,9 +315,7 @@ pub enum LoadFailure {
         element_id: u64,
     },
     /// The residual stopped decreasing.
-    #[error(
-        "the residual stopped decreasing ({changes} contact nodes still changing state)"
-    )]
+    #[error("the residual stopped decreasing ({changes} contact nodes still changing state)")]
     Stalled {
         /// Contact nodes that changed state in the last iteration.
         changes: usize,
@@ -370,7 +368,6 @@ pub(crate) fn param(
 ) -> Result<(), InvalidParam> {
     if ok && value.is_finite() { Ok(()) } else { Err(InvalidParam { name, value, requirement }) }
 }
-
 
 /// Length scale of a problem: the largest prescribed displacement component, or the
 /// bounding-box diagonal when nothing moves. Solver tolerances are relative to it; callers

@@ -81,7 +81,7 @@ impl Measured {
         };
         let level = self.last.map(|p| p.load_factor);
         match failure {
-            Failure::Solve(SolveError::LoadNotCarried { reached, load: size, cause }) => {
+            Failure::Solve(SolveError::LoadNotCarried { reached, load: size, cause, fallback }) => {
                 let cause = match cause {
                     LoadFailure::WouldInvert { element_id, .. } => {
                         format!("element {element_id} would invert")
@@ -93,7 +93,11 @@ impl Measured {
                         format!("level budget of {iterations} iterations spent")
                     }
                 };
-                format!("reached {:.1} of {size:.0} mm: {cause}", reached * size)
+                let fallback = match fallback {
+                    Some(f) => format!("; DR fallback: {f}"),
+                    None => String::new(),
+                };
+                format!("reached {:.1} of {size:.0} mm: {cause}{fallback}", reached * size)
             }
             Failure::Solve(SolveError::NoConvergence { steps, .. }) => match level {
                 Some(l) => {
@@ -173,6 +177,7 @@ mod tests {
                 reached: 0.905,
                 load: 40.0,
                 cause: LoadFailure::WouldInvert { element: 1233, element_id: 1234 },
+                fallback: None,
             },
             0.95,
         );

@@ -98,7 +98,8 @@ impl Elements {
             .with_min_len(1024)
             .filter(|(_, c)| c[0] != 0.0)
             .map(|(n, c)| {
-                let a = if c[0] > 0.0 { first_crossing(*c, fraction * c[0], alpha_max) } else { 0.0 };
+                let a =
+                    if c[0] > 0.0 { first_crossing(*c, fraction * c[0], alpha_max) } else { 0.0 };
                 (a, n as u32)
             })
             .reduce(|| (alpha_max, u32::MAX), min_pair);

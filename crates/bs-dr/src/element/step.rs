@@ -84,7 +84,11 @@ pub fn first_crossing(c: [f64; 4], level: f64, alpha_max: f64) -> f64 {
 }
 
 /// `Σ_a v_a ⊗ g_a` over an element's nodes.
-pub(crate) fn gradient<const N: usize>(v: &[Vector3<f64>], nodes: &[u32; N], g: &[[f64; 3]; N]) -> Matrix3<f64> {
+pub(crate) fn gradient<const N: usize>(
+    v: &[Vector3<f64>],
+    nodes: &[u32; N],
+    g: &[[f64; 3]; N],
+) -> Matrix3<f64> {
     let mut m = Matrix3::zeros();
     for a in 0..N {
         let va = &v[nodes[a] as usize];

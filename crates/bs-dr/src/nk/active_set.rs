@@ -5,8 +5,8 @@
 
 use bs_mesh::{Point3, Vector3};
 
-use crate::contact::{Contact, SurfaceFeature};
 use super::outcome::NewtonKrylovError;
+use crate::contact::{Contact, SurfaceFeature};
 use crate::linalg::twolevel::{Constraints, Projector, TwoLevel};
 
 /// The contact state of one node for one iteration.
@@ -184,8 +184,9 @@ impl ActiveSet {
                 // on their edge: hold it there. Otherwise full steps would repeat the cycle,
                 // damped ones converge.
                 if state.same_as(&self.before_previous[k]) {
-                    let crease = Active::crease(&self.previous[k], &state)
-                        .filter(|c| c.is_on_surface(&x, |q| contact.project(k, q).map(|p| p.point)));
+                    let crease = Active::crease(&self.previous[k], &state).filter(|c| {
+                        c.is_on_surface(&x, |q| contact.project(k, q).map(|p| p.point))
+                    });
                     match crease {
                         Some(c) => state = c,
                         None => change.cycling += 1,

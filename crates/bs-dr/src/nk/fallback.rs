@@ -23,10 +23,8 @@ pub(crate) fn dynamic_relaxation(
     contact: &mut dyn Contact,
     observer: &mut dyn FnMut(&Progress),
 ) -> Result<Solution<DrInfo>, DrError> {
-    let dr = DynamicRelaxation::new(DrParams {
-        tolerance: pb.params.tolerance,
-        ..DrParams::default()
-    });
+    let dr =
+        DynamicRelaxation::new(DrParams { tolerance: pb.params.tolerance, ..DrParams::default() });
     let mut relay = |p: &Progress| {
         observer(&Progress {
             step: offset + p.step,

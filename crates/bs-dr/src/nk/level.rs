@@ -54,7 +54,8 @@ pub(crate) fn solve(
     let mut applied = start.done;
     let mut warm = false;
     if let Some((before, s)) = start.secant
-        && let Some(t) = loading::predict(pb, it, work, before, s, start.done, start.target, contact)?
+        && let Some(t) =
+            loading::predict(pb, it, work, before, s, start.done, start.target, contact)?
     {
         (applied, warm) = (t, true);
     }
@@ -98,7 +99,11 @@ pub(crate) fn solve(
         };
         // 4. Accept.
         if load {
-            let reached = if alpha >= 1.0 { sub } else { schedule.applied + alpha * (sub - schedule.applied) };
+            let reached = if alpha >= 1.0 {
+                sub
+            } else {
+                schedule.applied + alpha * (sub - schedule.applied)
+            };
             pb.apply_prescribed(reached.min(target), &mut it.trial_u);
             schedule.loaded(reached, merit);
         } else {
@@ -132,7 +137,9 @@ pub(crate) fn solve(
                 let failure = match (f, limiting) {
                     (_, Some(_)) => would_invert(pb, limiting),
                     (Failure::Stalled, None) => LoadFailure::Stalled { changes: change.changes },
-                    (Failure::Budget, None) => LoadFailure::Budget { iterations: term.iterations() },
+                    (Failure::Budget, None) => {
+                        LoadFailure::Budget { iterations: term.iterations() }
+                    }
                 };
                 return Ok(Level::Failed { failure });
             }
@@ -207,7 +214,8 @@ fn observe(
         if let Some(proj) = contact.project(k, &it.positions[a])
             && proj.outside
         {
-            report.max_penetration = report.max_penetration.max((proj.point - it.positions[a]).norm());
+            report.max_penetration =
+                report.max_penetration.max((proj.point - it.positions[a]).norm());
         }
     }
     work.time.contact += t.elapsed();

@@ -10,8 +10,8 @@
 //! solution the surface features of contact nodes can cycle, and a damped step breaks the
 //! cycle where a rejected one would stop.
 
-use super::params::LineSearchParams;
 use super::outcome::NewtonKrylovError;
+use super::params::LineSearchParams;
 
 /// How a line search ended.
 #[derive(Debug, Clone, Copy, PartialEq)]

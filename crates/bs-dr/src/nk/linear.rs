@@ -13,9 +13,9 @@ use rayon::prelude::*;
 use super::Work;
 use crate::assembly::{Inversion, Workspace};
 use crate::linalg::krylov::{Gmres, GmresInfo};
-use crate::model::Model;
 use crate::linalg::sparse::max_abs;
 use crate::linalg::twolevel::{Constraints, TwoLevel, TwoLevelScratch};
+use crate::model::Model;
 
 /// Internal forces with the count and time kept.
 pub(crate) fn forces(

@@ -135,9 +135,8 @@ pub(crate) fn load_step(
     }
     let reference = pb.model.reference();
     let t = Instant::now();
-    let added = it.active.hold_predicted(contact, &pb.nodes, |a| {
-        reference[a] + it.u[a] + it.direction[a]
-    });
+    let added =
+        it.active.hold_predicted(contact, &pb.nodes, |a| reference[a] + it.u[a] + it.direction[a]);
     work.time.contact += t.elapsed();
     if added > 0 {
         direction(pb, it, work, Some(sub), rtol)?;

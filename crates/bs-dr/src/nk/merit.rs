@@ -15,8 +15,8 @@ use rayon::prelude::*;
 
 use super::outcome::NewtonKrylovError;
 use crate::contact::Contact;
-use crate::model::Model;
 use crate::linalg::twolevel::Projector;
+use crate::model::Model;
 
 /// The Euclidean norm of the natural residual (see the module documentation).
 #[allow(clippy::too_many_arguments)]

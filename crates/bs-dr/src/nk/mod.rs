@@ -212,7 +212,15 @@ impl NewtonKrylov {
                 Level::Failed { failure } => {
                     saved.restore(&mut it);
                     if let Err(e) = cont.cut_back() {
-                        return self.fall_back(&pb, &saved, e.reached, failure, work, (contact, observer), start);
+                        return self.fall_back(
+                            &pb,
+                            &saved,
+                            e.reached,
+                            failure,
+                            work,
+                            (contact, observer),
+                            start,
+                        );
                     }
                 }
             }
@@ -242,7 +250,8 @@ impl NewtonKrylov {
             return Err(not_carried(None));
         }
         let start_u = saved.displacements();
-        match fallback::dynamic_relaxation(pb, start_u, reached, work.iterations, contact, observer) {
+        match fallback::dynamic_relaxation(pb, start_u, reached, work.iterations, contact, observer)
+        {
             Err(e) => Err(not_carried(Some(e))),
             Ok(sol) => Ok(Solution {
                 displacements: sol.displacements,

@@ -214,14 +214,21 @@ mod tests {
     #[test]
     fn a_load_not_carried_names_the_fraction_the_element_and_blames_the_mesh_only_with_proof() {
         let cause = LoadFailure::WouldInvert { element: 1233, element_id: 1234 };
-        let e = NewtonKrylovError::LoadNotCarried { reached: 0.905, load: 40.0, cause, fallback: None };
+        let e =
+            NewtonKrylovError::LoadNotCarried { reached: 0.905, load: 40.0, cause, fallback: None };
         let text = e.to_string();
         assert!(text.starts_with("converged to 36.2 of 40 (90.5 % of the load)"), "{text}");
         assert!(text.contains("element 1233 (id 1234) would invert"), "{text}");
         assert!(!text.contains("mesh"), "{text}");
         assert_eq!(e.kind(), "LoadNotCarried");
-        let dr = DrError::ElementInverted { step: 53, element: 1233, element_id: 1234, jacobian: -0.1 };
-        let e = NewtonKrylovError::LoadNotCarried { reached: 0.905, load: 40.0, cause, fallback: Some(dr) };
+        let dr =
+            DrError::ElementInverted { step: 53, element: 1233, element_id: 1234, jacobian: -0.1 };
+        let e = NewtonKrylovError::LoadNotCarried {
+            reached: 0.905,
+            load: 40.0,
+            cause,
+            fallback: Some(dr),
+        };
         let text = e.to_string();
         assert!(text.contains("the mesh cannot carry this load around element 1233"), "{text}");
     }

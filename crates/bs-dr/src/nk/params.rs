@@ -2,8 +2,8 @@
 //! of its two named parts that a user may want to tune, the load continuation and the line
 //! search.
 
-use crate::solver::{InvalidParam, param};
 use crate::linalg::twolevel::TwoLevelParams;
+use crate::solver::{InvalidParam, param};
 
 /// How the prescribed displacements are applied: in increments of the load fraction λ
 /// (0 = the start state's prescribed values, 1 = the final ones).
