@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 
 use bs_dr::{
     DrParams, DynamicRelaxation, Loads, Model, ModelOptions, Newton, NewtonParams, NoContact,
-    Solid, Solver, TetFormulation,
+    Solid, TetFormulation,
 };
 use bs_material::Material;
 use bs_mesh::{Mesh, Vector3};
@@ -184,9 +184,10 @@ pub fn run() -> Result<(), String> {
         dr.report.err
     );
     println!(
-        "Newton: {:>7} iters  {:>8.2} s  (5 load steps, sparse Cholesky)",
-        newton.report.steps,
-        newton.report.elapsed.as_secs_f64()
+        "Newton: {:>7} iters  {:>8.2} s  ({} load steps, sparse Cholesky)",
+        newton.report.iterations,
+        newton.report.elapsed.as_secs_f64(),
+        newton.report.load_steps
     );
     println!(
         "max nodal |u_DR - u_Newton| = {diff:.2e} (load 0.2, DR tolerance {:.1e}); wall-time ratio DR/Newton = {:.2}",

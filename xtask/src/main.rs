@@ -2,7 +2,8 @@
 //!
 //! Commands:
 //! * `deps`: checks the crate dependency graph against the layering rules of
-//!   `docs/ARCHITECTURE.md` (also run as a test).
+//!   `docs/ARCHITECTURE.md`, every crate's module graph for cycles and bs-dr's folders for
+//!   their layer order (also run as tests).
 //! * `bench solver`: TLED kernel ns per element-step (1 vs 2 threads) and DR vs Newton
 //!   wall time.
 //! * `bench contact`: the paper's contact benchmark for every handler, table written to
@@ -58,8 +59,8 @@ const HELP: &str = "\
 cargo xtask <command>
 
 Commands:
-  deps            check the workspace crate graph against the layering rules and the
-                  composing crates for module cycles
+  deps            check the workspace crate graph against the layering rules, every crate's
+                  modules (all folders) for cycles, and bs-dr's folders for their layer order
   bench solver    kernel ns/element-step (1 vs 2 threads), DR vs Newton (release)
   bench contact   contact handlers on the paper's benchmark (writes docs/contact-bench.md)
   bench warp      warp and field of the MNI152 T1 template with the demo result: seconds,
@@ -133,13 +134,9 @@ fn report(result: Result<(), String>, what: &str) -> ExitCode {
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     match args.first().map(String::as_str) {
-        Some("deps") => match deps::check_workspace().and_then(|e| Ok((e, deps::check_modules()?)))
-        {
-            Ok((edges, crates)) => {
-                println!(
-                    "crate graph OK ({edges} workspace edges checked); no module cycles in \
-                     {crates} crates"
-                );
+        Some("deps") => match deps::run() {
+            Ok(summary) => {
+                println!("{summary}");
                 ExitCode::SUCCESS
             }
             Err(e) => {

@@ -10,7 +10,7 @@ use nalgebra::Point3;
 pub enum Feature {
     /// A master node (vertex index).
     Node(u32),
-    /// A master edge (index into [`MasterSurface::edges`](crate::MasterSurface::edges)).
+    /// A master edge (index into `MasterSurface::edges`).
     Edge(u32),
     /// A master face (triangle index).
     Face(u32),
@@ -33,7 +33,7 @@ pub struct Projection {
 }
 
 /// A closest-point query on the master surface: what each contact handler provides. The
-/// enforcement loop ([`Enforcer`](crate::Enforcer)) is generic over it.
+/// enforcement loop (`Enforcer`, a module above this one) is generic over it.
 pub trait ClosestPoint {
     /// Closest point to `p`, the current position of slave number `slave` (its index in the
     /// slave list; handlers with per-slave state use it).

@@ -48,7 +48,7 @@
 //!   moves them (the solver restores them after [`Contact::enforce`]).
 //! * DR stops on its error estimate ([`DrParams::tolerance`] × load scale for
 //!   [`DrParams::consecutive`] steps), never on a step count; every failure is a typed
-//!   [`SolveError`] naming the cause and the fix (NaN, inverted element with index and id,
+//!   [`DrError`] naming the cause and the fix (NaN, inverted element with index and id,
 //!   unstable step, unbounded growth, step budget with the error reached).
 //! * Internal forces are bit-identical for any rayon thread count; the step loop allocates
 //!   nothing (buffers are allocated once per solve).
@@ -57,29 +57,32 @@
 //!   settled; its solves are bit-identical for any thread count (deterministic reductions).
 //! * Newton supports T4 and H8 (not T4ANP, not contact) and exists to check the others.
 //!
-//! Modules: [`model`] (precomputation), [`forces`] (deterministic parallel assembly of the
-//! element kernels, which live in the private `kernels` module: SIMD across blocks of four
-//! tets with runtime dispatch, H8, and the scalar reference), [`loads`], [`contact`] (the
-//! seam), [`solver`] (trait, report, errors), [`dr`], [`newton`]; for Newton–Krylov
-//! [`stiffness`] (`K₀`), [`sparse`] (nodal sparse kernels), [`twolevel`] (the
-//! preconditioner), [`krylov`] (GMRES) and [`newton_krylov`].
+//! Layers, lowest first (each folder imports only the rows above it; `cargo xtask deps`
+//! checks it): [`element`] (one element's data), `kernels` (TLED forces on SIMD lanes),
+//! [`linalg`] (nodal vectors, sparse matrices, GMRES, the two-level preconditioner),
+//! [`assembly`] (internal forces, `K₀`, element tangents), [`model`] and `mass` (the
+//! model, its masses and time steps), then the solvers ([`dr`], [`newton`],
+//! [`newton_krylov`]) with their seams ([`contact`], [`loads`]), the common [`solver`]
+//! types and [`post`]. Each solver has its own parameters, info and error
+//! ([`DrParams`]/[`DrInfo`]/[`DrError`], [`NewtonParams`]/[`NewtonInfo`]/[`NewtonError`];
+//! Newton–Krylov still reports through the common [`Report`] and [`SolveError`]), and the
+//! [`Solver`] trait converts them into the common ones.
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the tensor formulas
 
+pub mod assembly;
 pub mod contact;
 pub mod dr;
-pub mod forces;
+pub mod element;
 mod kernels;
-pub mod krylov;
+pub mod linalg;
 pub mod loads;
+mod mass;
 pub mod model;
 pub mod newton;
-pub mod newton_krylov;
+pub mod nk;
 pub mod post;
 pub mod solver;
-pub mod sparse;
-pub mod stiffness;
-pub mod twolevel;
 
 /// The constitutive laws of [`Solid`], re-exported.
 pub use bs_material;
@@ -89,20 +92,28 @@ pub use bs_mesh;
 /// The linear algebra of every nodal vector here.
 pub use nalgebra;
 
-pub use contact::{Contact, ContactProjection, ContactReport, NoContact, SurfaceFeature};
-pub use dr::{DrParams, DynamicRelaxation};
-pub use forces::{Inversion, Workspace};
 #[doc(hidden)]
-pub use kernels::reference::ReferenceWorkspace;
+pub use assembly::ReferenceWorkspace;
+pub use assembly::StepBound;
+pub use assembly::{Inversion, Workspace};
+pub use contact::{Contact, ContactProjection, ContactReport, NoContact, SurfaceFeature};
+pub use dr::{DrError, DrInfo, DrParams, DynamicRelaxation};
+pub use element::{Solid, TetFormulation};
 #[doc(hidden)]
 pub use kernels::simd::has_avx2_fma;
+pub use linalg::twolevel::TwoLevelParams;
 pub use loads::{LoadError, Loads, ramp};
-pub use model::{Model, ModelError, ModelOptions, Solid, TetFormulation};
-pub use newton::{Newton, NewtonParams};
-pub use newton_krylov::{NewtonKrylov, NewtonKrylovParams, Preparation};
+pub use model::{Model, ModelError, ModelOptions};
+pub use newton::{Newton, NewtonError, NewtonInfo, NewtonParams};
+pub use nk::{
+    ContinuationParams, LineSearchParams, NewtonKrylov, NewtonKrylovError, NewtonKrylovInfo,
+    NewtonKrylovParams, Preparation,
+};
 pub use post::ElementMeasures;
-pub use solver::{Breakdown, Progress, Report, Solution, SolveError, Solver, load_scale};
-pub use twolevel::TwoLevelParams;
+pub use solver::{
+    Breakdown, ContinuationSummary, LoadFailure, Progress, Report, Solution, SolveError, Solver,
+    load_scale,
+};
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -107,6 +107,15 @@ impl Loads {
         Ok(())
     }
 
+    /// The same constraints with every prescribed value multiplied by `factor` (the loads
+    /// at load fraction `factor` of a continuation).
+    pub fn scaled(&self, factor: f64) -> Loads {
+        Loads {
+            constrained: self.constrained.clone(),
+            value: self.value.iter().map(|v| v * factor).collect(),
+        }
+    }
+
     /// Number of nodes.
     pub fn node_count(&self) -> usize {
         self.constrained.len()
@@ -151,5 +160,38 @@ impl Loads {
             }
         }
         (free, fixed)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The 3-4-5 ramp: 0 and 1 at the ends, ½ in the middle, zero slope at both ends.
+    #[test]
+    fn ramp_345() {
+        assert_eq!(ramp(0.0), 0.0);
+        assert_eq!(ramp(1.0), 1.0);
+        assert_eq!(ramp(0.5), 0.5);
+        assert_eq!(ramp(-1.0), 0.0);
+        assert_eq!(ramp(2.0), 1.0);
+        let h = 1e-6;
+        assert!((ramp(h) - ramp(0.0)) / h < 1e-10);
+        assert!((ramp(1.0) - ramp(1.0 - h)) / h < 1e-10);
+        // d(τ) = 10τ³ − 15τ⁴ + 6τ⁵ at τ = 0.3.
+        assert!((ramp(0.3) - (0.27 - 15.0 * 0.0081 + 6.0 * 0.00243)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn load_errors_are_typed() {
+        let mut l = Loads::new(3);
+        assert_eq!(l.fix(3, 0), Err(LoadError::NodeOutOfRange { node: 3, count: 3 }));
+        assert_eq!(l.fix(0, 3), Err(LoadError::ComponentOutOfRange(3)));
+        assert!(matches!(
+            l.prescribe(1, 1, f64::NAN),
+            Err(LoadError::NonFinite { node: 1, component: 1, .. })
+        ));
+        l.prescribe(2, 1, -0.5).unwrap();
+        assert_eq!((l.max_prescribed(), l.constrained_count()), (0.5, 1));
     }
 }

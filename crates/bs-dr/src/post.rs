@@ -16,20 +16,6 @@ pub struct ElementMeasures {
     pub von_mises: Vec<f64>,
 }
 
-/// Deformation gradient `F = I + Σ_a u_a ⊗ ∇N_a` of one element.
-fn deformation_gradient(nodes: &[u32], g: &[[f64; 3]], u: &[Vector3<f64>]) -> Matrix3<f64> {
-    let mut f = Matrix3::identity();
-    for (a, &n) in nodes.iter().enumerate() {
-        let ua = u[n as usize];
-        for i in 0..3 {
-            for k in 0..3 {
-                f[(i, k)] += ua[i] * g[a][k];
-            }
-        }
-    }
-    f
-}
-
 /// Von Mises equivalent stress of a symmetric Cauchy stress.
 pub fn von_mises(s: &Matrix3<f64>) -> f64 {
     let d = [s[(0, 0)] - s[(1, 1)], s[(1, 1)] - s[(2, 2)], s[(2, 2)] - s[(0, 0)]];
@@ -54,18 +40,14 @@ impl Model {
         }
         let ne = self.element_count();
         let mut out = ElementMeasures { volume_ratio: vec![0.0; ne], von_mises: vec![0.0; ne] };
-        let tets = self.tets.iter().map(|t| (&t.nodes[..], &t.g[..], t.mat));
-        let hexes = self.hexes.iter().map(|h| (&h.nodes[..], &h.g[..], h.mat));
-        let elems = self.tet_elem.iter().chain(&self.hex_elem);
-        for ((nodes, g, mat), &e) in tets.chain(hexes).zip(elems) {
-            let e = e as usize;
-            let f = deformation_gradient(nodes, g, displacements);
+        for (e, v) in self.elements.iter() {
+            let f = v.deformation_gradient(displacements);
             let j = f.determinant();
-            let s = self.solids[mat as usize].material.pk2(&f).map_err(|_| {
+            let s = self.elements.solids[v.mat].material.pk2(&f).map_err(|_| {
                 SolveError::ElementInverted {
                     step: 0,
                     element: e,
-                    element_id: self.element_ids[e],
+                    element_id: self.element_ids()[e],
                     jacobian: j,
                 }
             })?;

@@ -1,5 +1,8 @@
-//! What every solver shares: the [`Solver`] trait, the progress record passed to observers,
-//! the report, the solution and the typed errors.
+//! What every solver shares: the [`Solver`] trait that makes them interchangeable, the
+//! progress record passed to observers, the common summary ([`Report`]) and error
+//! ([`SolveError`]). Each solver also has its own parameters, info and error types
+//! (`DrParams`/`DrInfo`/`DrError`, `NewtonParams`/`NewtonInfo`/`NewtonError`), returned by its
+//! inherent `solve` and converted into the common ones by `From` behind the trait.
 
 use std::time::Duration;
 
@@ -45,10 +48,11 @@ pub struct Breakdown {
     pub contact: Duration,
 }
 
-/// Summary of a successful solve.
+/// The common summary of a successful solve, what every solver can say (its own info type
+/// says more: DR's convergence rate, Newton's load steps).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Report {
-    /// Solver name (`"dynamic-relaxation"`, `"newton"`).
+    /// Solver name (`"newton-krylov"`, `"dynamic-relaxation"`, `"newton"`).
     pub solver: &'static str,
     /// DR steps, or total Newton iterations.
     pub steps: usize,
@@ -56,10 +60,6 @@ pub struct Report {
     pub err: f64,
     /// The tolerance it was compared with (length units).
     pub tolerance: f64,
-    /// Final DR convergence rate ρ (Newton: 0).
-    pub rho: f64,
-    /// Final DR lowest-eigenvalue estimate `ω_min` in units of 1/h (Newton: 0).
-    pub omega_min: f64,
     /// Contact report of the last step (Newton–Krylov: nodes held on the surface at the end,
     /// and the largest penetration of any iterate).
     pub contact: ContactReport,
@@ -72,15 +72,37 @@ pub struct Report {
     pub breakdown: Breakdown,
     /// Wall-clock time of the solve.
     pub elapsed: Duration,
+    /// How the load was carried (Newton–Krylov's continuation; `None` for the others).
+    pub continuation: Option<ContinuationSummary>,
 }
 
-/// Displacements and report of a successful solve.
+/// How a continuation carried the load to its end.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ContinuationSummary {
+    /// Load levels converged (1: the whole load at once).
+    pub load_levels: usize,
+    /// Failed attempts at a level retried with a smaller increment.
+    pub cutbacks: usize,
+    /// Dynamic Relaxation steps of the fallback (0: not needed).
+    pub fallback_steps: usize,
+}
+
+/// Displacements and report of a successful solve: the common [`Report`] through the
+/// [`Solver`] trait, or the solver's own info (`DrInfo`, `NewtonInfo`) from its inherent
+/// `solve`.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Solution {
+pub struct Solution<R = Report> {
     /// Nodal displacements, indexed like the mesh nodes.
     pub displacements: Vec<Vector3<f64>>,
     /// Summary.
-    pub report: Report,
+    pub report: R,
+}
+
+impl<R: Into<Report>> Solution<R> {
+    /// The same solution with the common summary.
+    pub fn into_common(self) -> Solution {
+        Solution { displacements: self.displacements, report: self.report.into() }
+    }
 }
 
 /// Why a solve stopped without an answer. Every variant names the cause and the fix.
@@ -176,6 +198,26 @@ pub enum SolveError {
         /// The tolerance (length units).
         tolerance: f64,
     },
+    /// The load continuation could not carry the prescribed displacements to their final
+    /// values: it converged up to a fraction of them and says why it went no further, and
+    /// what its fallback (Dynamic Relaxation from the last converged state) met, if it ran.
+    #[error(
+        "converged to {} of {} ({:.1} % of the load): {cause}{}",
+        length(reached * load),
+        length(*load),
+        reached * 100.0,
+        fallback_text(fallback)
+    )]
+    LoadNotCarried {
+        /// Load fraction λ of the last converged level.
+        reached: f64,
+        /// The full load's size (the largest prescribed displacement component).
+        load: f64,
+        /// Why the next level failed.
+        cause: LoadFailure,
+        /// How the fallback from the last converged state stopped (`None`: not run).
+        fallback: Option<Box<SolveError>>,
+    },
     /// The tangent matrix could not be factorised.
     #[error(
         "tangent stiffness is singular or indefinite at load step {load_step}, iteration \
@@ -219,6 +261,7 @@ impl SolveError {
             SolveError::Diverged { .. } => "Diverged",
             SolveError::NoConvergence { .. } => "NoConvergence",
             SolveError::SingularTangent { .. } => "SingularTangent",
+            SolveError::LoadNotCarried { .. } => "LoadNotCarried",
             SolveError::Preconditioner { .. } => "Preconditioner",
             SolveError::Unsupported { .. } => "Unsupported",
         }
@@ -239,6 +282,52 @@ impl SolveError {
     }
 }
 
+/// A length for a message: three decimals at most, trailing zeros dropped (36.2, 40).
+fn length(x: f64) -> String {
+    let s = format!("{x:.3}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
+fn fallback_text(fallback: &Option<Box<SolveError>>) -> String {
+    match fallback.as_deref() {
+        None => String::new(),
+        Some(e @ SolveError::ElementInverted { element, element_id, .. }) => format!(
+            "; Dynamic Relaxation from that state stopped too ({}): the mesh cannot carry this \
+             load around element {element} (id {element_id}) — refine it there, or reduce the load",
+            e.kind()
+        ),
+        Some(e) => format!("; Dynamic Relaxation from that state stopped too: {e}"),
+    }
+}
+
+/// Why a load level could not be solved (the cause in [`SolveError::LoadNotCarried`]).
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum LoadFailure {
+    /// Every step towards the next level was cut short by an element about to invert.
+    #[error(
+        "element {element} (id {element_id}) would invert under a larger load: the steps \
+         that keep it valid make no progress"
+    )]
+    WouldInvert {
+        /// Element index (mesh order).
+        element: usize,
+        /// External element id.
+        element_id: u64,
+    },
+    /// The residual stopped decreasing.
+    #[error("the residual stopped decreasing ({changes} contact nodes still changing state)")]
+    Stalled {
+        /// Contact nodes that changed state in the last iteration.
+        changes: usize,
+    },
+    /// The level's iteration budget was spent while the residual still decreased.
+    #[error("no convergence within {iterations} Newton iterations at the next load level")]
+    Budget {
+        /// Iterations spent.
+        iterations: usize,
+    },
+}
+
 /// A static solver: DR and Newton are interchangeable behind this trait.
 pub trait Solver {
     /// Solver name for reports.
@@ -256,17 +345,28 @@ pub trait Solver {
     ) -> Result<Solution, SolveError>;
 }
 
-pub(crate) fn check_param(
+/// A solver parameter out of range: every solver's error has a variant for it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct InvalidParam {
+    pub name: &'static str,
+    pub value: f64,
+    pub requirement: &'static str,
+}
+
+impl From<InvalidParam> for SolveError {
+    fn from(p: InvalidParam) -> Self {
+        SolveError::InvalidParams { name: p.name, value: p.value, requirement: p.requirement }
+    }
+}
+
+/// `Ok` if `ok` and `value` is finite, else the parameter `name` with what it must satisfy.
+pub(crate) fn param(
     name: &'static str,
     value: f64,
     ok: bool,
     requirement: &'static str,
-) -> Result<(), SolveError> {
-    if ok && value.is_finite() {
-        Ok(())
-    } else {
-        Err(SolveError::InvalidParams { name, value, requirement })
-    }
+) -> Result<(), InvalidParam> {
+    if ok && value.is_finite() { Ok(()) } else { Err(InvalidParam { name, value, requirement }) }
 }
 
 /// Length scale of a problem: the largest prescribed displacement component, or the

@@ -54,6 +54,7 @@ pub mod rng;
 pub mod self_intersection;
 pub mod structured;
 mod surface;
+mod surface_check;
 pub mod tps;
 mod validate;
 
@@ -64,6 +65,6 @@ pub use mesh::{Element, ElementKind, HEX_REFERENCE, Mesh};
 /// separate dependency.
 pub use nalgebra;
 pub use nalgebra::{Point3, Vector3};
-pub use self_intersection::SelfIntersection;
-pub use surface::{Edge, SurfaceCheck, SurfaceError, SurfaceTopology, TriSurface};
+pub use surface::{Edge, SelfIntersection, SurfaceError, SurfaceTopology, TriSurface};
+pub use surface_check::SurfaceCheck;
 pub use validate::{MeshError, ValidationReport};

@@ -26,16 +26,8 @@
 
 use nalgebra::Point3;
 
-use crate::TriSurface;
-
-/// Two triangles of one surface that cross or overlap beyond what they share.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
-pub struct SelfIntersection {
-    /// The smaller triangle index.
-    pub first: usize,
-    /// The larger triangle index.
-    pub second: usize,
-}
+pub use crate::surface::SelfIntersection;
+use crate::surface::TriSurface;
 
 type P = Point3<f64>;
 

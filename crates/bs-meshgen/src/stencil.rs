@@ -8,8 +8,9 @@
 //! vertex). Quadrilateral faces are split by a diagonal chosen from the *face alone*
 //! ([`Cutter::face_diagonal`]), so two tetrahedra sharing the face split it the same way and
 //! the mesh is conforming. A prism whose three diagonals turn the same way (a Schönhardt
-//! twist) cannot be split into 3 tetrahedra; the rules used here avoid it (see
-//! [`crate::stuffing`]), and a Steiner point at the prism's centroid is the fallback.
+//! twist) cannot be split into 3 tetrahedra; the rules used here avoid it (see the
+//! `stuffing` module above this one), and a Steiner point at the prism's centroid is the
+//! fallback.
 
 use nalgebra::Point3;
 

@@ -33,7 +33,7 @@ pub struct Composed {
     /// component, or the mesh diagonal without loads): bs-dr's tolerances are relative.
     pub load_scale: f64,
     /// The Newton–Krylov solver's preparation (its preconditioner), once computed
-    /// ([`crate::solve::prepare_solver`]); it depends only on the model and which components
+    /// (`solve::prepare_solver`); it depends only on the model and which components
     /// are prescribed, so it is kept for every solve of this composition.
     pub preparation: Option<bs_dr::Preparation>,
 }

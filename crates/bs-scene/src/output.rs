@@ -34,6 +34,13 @@ pub struct RunReport {
     pub force_evaluations: usize,
     /// Inner linear-solver iterations (newton-krylov: GMRES; otherwise 0).
     pub linear_iterations: usize,
+    /// Load levels of newton-krylov's continuation (1: the whole load at once; 0 for the
+    /// other solvers).
+    pub load_levels: usize,
+    /// Failed load levels retried with a smaller increment (newton-krylov).
+    pub cutbacks: usize,
+    /// Dynamic Relaxation steps of newton-krylov's fallback (0: not needed).
+    pub fallback_steps: usize,
     /// Part of `wall_seconds` spent in contact enforcement and queries.
     pub contact_seconds: f64,
     /// Part of `wall_seconds` spent evaluating internal forces (newton-krylov; 0 for the
@@ -125,6 +132,9 @@ pub fn report(run: &Run, s: &Solved, ctx: RunContext) -> RunReport {
         solve_seconds: s.solve_seconds,
         force_evaluations: r.force_evaluations,
         linear_iterations: r.linear_iterations,
+        load_levels: r.continuation.map_or(0, |c| c.load_levels),
+        cutbacks: r.continuation.map_or(0, |c| c.cutbacks),
+        fallback_steps: r.continuation.map_or(0, |c| c.fallback_steps),
         contact_seconds: c.contact.as_ref().map_or(0.0, |sc| sc.elapsed.as_secs_f64()),
         force_seconds: r.breakdown.forces.as_secs_f64(),
         preconditioner_seconds: r.breakdown.preconditioner.as_secs_f64(),

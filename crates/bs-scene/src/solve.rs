@@ -68,7 +68,8 @@ pub fn prepare_solver(c: &mut Composed, s: &SolveSettings) -> Result<(), SolveEr
     if s.kind == SolverKind::NewtonKrylov
         && c.preparation.as_ref().is_none_or(|p| !p.fits(&c.loads))
     {
-        c.preparation = Some(newton_krylov(c, s).prepare(&c.model, &c.loads)?);
+        c.preparation =
+            Some(newton_krylov(c, s).prepare(&c.model, &c.loads).map_err(SolveError::from)?);
     }
     Ok(())
 }
@@ -95,32 +96,28 @@ pub fn solve_composed(
     let solution = match s.kind {
         SolverKind::NewtonKrylov => {
             let prep = c.preparation.as_ref().expect("prepared above");
-            newton_krylov_params(s, c.load_scale).solve_prepared(
-                &c.model,
-                &c.loads,
-                prep,
-                contact,
-                &mut observe,
-            )
+            newton_krylov_params(s, c.load_scale)
+                .solve_prepared(&c.model, &c.loads, prep, contact, &mut observe)
+                .map(Solution::into_common)
+                .map_err(SolveError::from)
         }
+        // The baseline and the reference through the common trait: their own info and
+        // errors become the common report and error.
         SolverKind::Dr => {
             let defaults = DrParams::default();
-            DynamicRelaxation::new(DrParams {
+            let dr = DynamicRelaxation::new(DrParams {
                 tolerance: relative,
                 step_fraction: s.step_fraction,
                 max_steps: s.max_steps.unwrap_or(defaults.max_steps),
                 ramp_steps: s.ramp_steps,
                 ..defaults
-            })
-            .solve(&c.model, &c.loads, contact, &mut observe)
+            });
+            Solver::solve(&dr, &c.model, &c.loads, contact, &mut observe)
         }
         SolverKind::Newton => {
-            Newton::new(NewtonParams { tolerance: relative, ..NewtonParams::default() }).solve(
-                &c.model,
-                &c.loads,
-                contact,
-                &mut observe,
-            )
+            let newton =
+                Newton::new(NewtonParams { tolerance: relative, ..NewtonParams::default() });
+            Solver::solve(&newton, &c.model, &c.loads, contact, &mut observe)
         }
     }?;
     Ok((solution, max_penetration))

@@ -6,7 +6,7 @@
 use std::time::Instant;
 
 use bs_contact::PaperParams;
-use bs_dr::SolveError;
+use bs_dr::{Progress, SolveError};
 use nalgebra::Vector3;
 
 use crate::compose::{ComposeOptions, compose_with};
@@ -179,6 +179,16 @@ impl Variant {
 
     /// Solves the scene with this variant.
     pub fn solve(&self, p: &Prepared) -> Result<Outcome, Failure> {
+        self.solve_observed(p, &mut |_| {})
+    }
+
+    /// [`Variant::solve`], calling `observer` once per DR step or Newton iteration (what a
+    /// run that stops early reached: its load fraction, iterations and force evaluations).
+    pub fn solve_observed(
+        &self,
+        p: &Prepared,
+        observer: &mut dyn FnMut(&Progress),
+    ) -> Result<Outcome, Failure> {
         let q = self.apply(p)?;
         let defaults = ComposeOptions::default();
         let opts = ComposeOptions {
@@ -203,7 +213,7 @@ impl Variant {
         let prepare_seconds = started.elapsed().as_secs_f64();
         let solving = Instant::now();
         let (solution, max_penetration_before) =
-            solve_composed(&mut c, &settings, &mut |_| {}).map_err(Failure::Solve)?;
+            solve_composed(&mut c, &settings, observer).map_err(Failure::Solve)?;
         let u = solution.displacements;
         let v = verify(&q, &c, &u, settings.tolerance).map_err(Failure::Check)?;
         let solve_seconds = solving.elapsed().as_secs_f64();

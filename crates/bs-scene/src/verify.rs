@@ -6,6 +6,7 @@
 use nalgebra::Vector3;
 
 use crate::compose::Composed;
+pub use crate::error::VerifyError;
 use crate::gap::exact_gaps;
 use crate::prepare::Prepared;
 
@@ -51,65 +52,6 @@ pub fn contact_state(p: &Prepared, c: &Composed, u: &[Vector3<f64>], tol: f64) -
         }
     }
     st
-}
-
-/// Why a converged result is refused.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum VerifyError {
-    /// Brain surface nodes ended outside the skull.
-    #[error(
-        "contact check failed: {count} brain surface node{} ended outside the skull by more \
-         than the tolerance {tolerance:e}; worst: node {node_id} by {distance:.3e}. The contact \
-         handler missed penetrations; run the scene with algorithm = \"brute-force\" to confirm",
-        if *count == 1 { "" } else { "s" }
-    )]
-    OutsideSkull {
-        /// How many slaves are outside beyond the tolerance.
-        count: usize,
-        /// The worst one's id.
-        node_id: u64,
-        /// How far outside it is (mesh length units).
-        distance: f64,
-        /// The tolerance (mesh length units).
-        tolerance: f64,
-    },
-    /// An element of the result is inverted or flat.
-    #[error(
-        "result check failed: element {element_id} has J = {jacobian:.3e} <= 0 (inverted) in \
-         the converged result; the load is too large for this mesh: refine it under the load \
-         or reduce the displacement"
-    )]
-    Inverted {
-        /// The element's id.
-        element_id: u64,
-        /// Its volume ratio.
-        jacobian: f64,
-    },
-    /// The result is not in equilibrium.
-    #[error(
-        "result check failed: the out-of-balance force at node {node_id} is {residual:.3e} of \
-         the largest reaction force (bound {bound:.1e} for the tolerance); the solver stopped \
-         before equilibrium: tighten [solver] tolerance or use kind = \"dr\""
-    )]
-    Equilibrium {
-        /// The worst free node's id.
-        node_id: u64,
-        /// Its out-of-balance force relative to the largest reaction.
-        residual: f64,
-        /// The bound it exceeded.
-        bound: f64,
-    },
-}
-
-impl VerifyError {
-    /// A short stable name of the error kind.
-    pub fn kind(&self) -> &'static str {
-        match self {
-            VerifyError::OutsideSkull { .. } => "ContactCheck",
-            VerifyError::Inverted { .. } => "InvertedResult",
-            VerifyError::Equilibrium { .. } => "Equilibrium",
-        }
-    }
 }
 
 /// The figures of a verified result (they go into report.json).

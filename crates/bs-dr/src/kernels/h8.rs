@@ -5,12 +5,12 @@
 
 use bs_mesh::Vector3;
 
-use super::layout::{BlockLaw, HexBlock, LANES};
+use super::layout::{BlockLaw, HexBlock, LANES, sym_index};
 use super::neo_hookean::{NhLanes, inv_cbrt, pk1_coefficients};
 use super::reference;
 use super::simd::{BlockOp, Lanes};
 use super::tet_block::kinematics_of;
-use crate::model::{Hex, Solid};
+use crate::element::{Hex, Solid};
 
 /// Forces of one block of hexes, hex-major: the 96 values `[lane][3a + component]` as 24
 /// rows of four (hex `h`'s slot `8h + a` at `3(8h + a)` of the flattened buffer).
@@ -132,12 +132,4 @@ impl BlockOp for H8Forces<'_> {
         }
         bad
     }
-}
-
-/// Index of entry `(a, c)` of a symmetric 8×8 matrix stored as its upper triangle, row by
-/// row (36 entries).
-#[inline(always)]
-pub(crate) const fn sym_index(a: usize, c: usize) -> usize {
-    let (r, s) = if a <= c { (a, c) } else { (c, a) };
-    r * 8 - r * (r + 1) / 2 + s
 }

@@ -8,8 +8,7 @@
 
 use bs_material::{Elastic, Material};
 
-use super::h8::sym_index;
-use crate::model::{Hex, Solid, Tet};
+use crate::element::{Hex, Solid, Tet};
 
 /// Elements per block (f64 lanes of a 256-bit vector).
 pub(crate) const LANES: usize = 4;
@@ -132,13 +131,10 @@ pub(crate) fn tet_blocks(tets: &[Tet], solids: &[Solid]) -> Vec<TetBlock> {
         .collect()
 }
 
-/// Number of tet slots of every node (they come first in its `gather_slot` range).
-pub(crate) fn tet_slot_counts(gather_ptr: &[u32], gather_slot: &[u32], nt: usize) -> Vec<u32> {
-    gather_ptr
-        .windows(2)
-        .map(|w| {
-            let slots = &gather_slot[w[0] as usize..w[1] as usize];
-            slots.partition_point(|&s| (s as usize) < 4 * nt) as u32
-        })
-        .collect()
+/// Index of entry `(a, c)` of a symmetric 8×8 matrix stored as its upper triangle, row by
+/// row (36 entries).
+#[inline(always)]
+pub(crate) const fn sym_index(a: usize, c: usize) -> usize {
+    let (r, s) = if a <= c { (a, c) } else { (c, a) };
+    r * 8 - r * (r + 1) / 2 + s
 }

@@ -1,10 +1,13 @@
-//! TLED element kernels. [`crate::forces`] runs them over the elements in parallel and
-//! assembles their per-element force slots; this module computes the slots.
+//! TLED element kernels: the nodal forces of blocks of four elements (or of one), written to
+//! per-element force slots. The assembly layer above runs them over the elements in
+//! parallel and gathers the slots into nodal forces.
+//!
+//! Architecture invariant: the kernels import the element layer only.
 //!
 //! * [`simd`]: four f64 lanes (AVX2/FMA through `pulp`'s safe token, or a portable
 //!   fallback) and the runtime dispatch;
 //! * [`layout`]: the blocks of four tets and of four hexes (structure of arrays) derived
-//!   from `Model::tets` and `Model::hexes`;
+//!   from the model's tets and hexes;
 //! * [`neo_hookean`]: the Neo-Hookean stress on lanes, mirroring bs-material;
 //! * [`tet_block`]: `F` of four tets from the padded displacements, nodal forces, inverted
 //!   lanes;

@@ -10,7 +10,7 @@ use super::tet_block::{
     BlockForces, GROUP, Kinematics, group_laws, kinematics, nh_lanes, put_lane, store_forces,
     zero_invalid_lanes,
 };
-use crate::model::{Solid, Tet};
+use crate::element::{Solid, Tet};
 
 /// T4 forces and `J` of a run of consecutive blocks.
 pub(crate) struct T4Forces<'a> {

@@ -21,7 +21,7 @@ use super::tet_block::{
     BlockForces, GROUP, Kinematics, deformation_gradient, group_laws, kinematics, nh_lanes,
     put_lane, store_forces, zero_invalid_lanes,
 };
-use crate::model::{Solid, Tet};
+use crate::element::{Solid, Tet};
 
 /// Pass 1: `J` and `V J` of a run of consecutive blocks.
 pub(crate) struct Jacobians<'a> {

@@ -5,7 +5,7 @@ use bs_mesh::rng::SplitMix64;
 use bs_mesh::structured::jittered_box_mesh;
 use bs_mesh::{Mesh, Vector3};
 
-use super::reference::{deformation_gradient, det3};
+use crate::element::kinematics::{deformation_gradient, det3};
 use crate::{Inversion, Model, ModelOptions, Solid, TetFormulation};
 
 /// Unit box of `n³` cells, interior nodes jittered by up to 0.2 h per axis.
@@ -106,10 +106,10 @@ fn simd_kernels_match_the_scalar_reference() {
 /// lowest element index with a value not > 0.
 fn brute_force_first_inversion(m: &Model, u: &[Vector3<f64>]) -> Option<usize> {
     let tj: Vec<f64> =
-        m.tets.iter().map(|t| det3(&deformation_gradient(u, &t.nodes, &t.g))).collect();
+        m.elements.tets.iter().map(|t| det3(&deformation_gradient(u, &t.nodes, &t.g))).collect();
     let mut jn = vec![0.0; m.node_count()];
     let mut vn = vec![0.0; m.node_count()];
-    for (t, &j) in m.tets.iter().zip(&tj) {
+    for (t, &j) in m.elements.tets.iter().zip(&tj) {
         for &n in &t.nodes {
             jn[n as usize] += t.vol * j;
             vn[n as usize] += t.vol;
@@ -117,15 +117,15 @@ fn brute_force_first_inversion(m: &Model, u: &[Vector3<f64>]) -> Option<usize> {
     }
     let anp = m.options.tet == TetFormulation::T4Anp;
     let mut bad: Vec<usize> = Vec::new();
-    for (k, t) in m.tets.iter().enumerate() {
+    for (k, t) in m.elements.tets.iter().enumerate() {
         let jbar = t.nodes.iter().map(|&n| jn[n as usize] / vn[n as usize]).sum::<f64>() / 4.0;
         if tj[k] <= 0.0 || (anp && jbar <= 0.0) {
-            bad.push(m.tet_elem[k] as usize);
+            bad.push(m.elements.tet_elem[k] as usize);
         }
     }
-    for (k, h) in m.hexes.iter().enumerate() {
+    for (k, h) in m.elements.hexes.iter().enumerate() {
         if det3(&deformation_gradient(u, &h.nodes, &h.g)) <= 0.0 {
-            bad.push(m.hex_elem[k] as usize);
+            bad.push(m.elements.hex_elem[k] as usize);
         }
     }
     bad.into_iter().min()

@@ -1,7 +1,7 @@
 //! The contact seam: a kinematic frictionless floor implemented on the test side (the way
 //! bs-contact does for the skull) drives DR to the answer of a symmetry plane.
 
-use bs_dr::{Contact, ContactReport, DrParams, DynamicRelaxation, Loads, NoContact, Solver};
+use bs_dr::{Contact, ContactReport, DrParams, DynamicRelaxation, Loads, NoContact};
 use bs_material::Material;
 use bs_mesh::{Point3, Vector3};
 

@@ -2,8 +2,7 @@
 //! inverted elements.
 
 use bs_dr::{
-    DrParams, DynamicRelaxation, Loads, Model, ModelError, ModelOptions, NoContact, Solid,
-    SolveError, Solver,
+    DrError, DrParams, DynamicRelaxation, Loads, Model, ModelError, ModelOptions, NoContact, Solid,
 };
 use bs_material::Material;
 use bs_mesh::{Element, Mesh, Point3, Vector3};
@@ -99,7 +98,7 @@ fn time_step_above_critical_trips_the_guard_before_nan() {
             });
         assert!(!saw_non_finite, "observer saw a non-finite displacement at {factor}x");
         match result {
-            Err(SolveError::Unstable { step, growth, step_fraction, .. }) => {
+            Err(DrError::Unstable { step, growth, step_fraction, .. }) => {
                 assert!(growth > 1.25 && step <= 200, "{factor}x: growth {growth} at step {step}");
                 assert_eq!(step_fraction, params.step_fraction);
                 let msg = result.unwrap_err().to_string();
@@ -158,7 +157,7 @@ fn element_inverted_during_the_solve_is_named() {
     });
     assert!(!saw_non_finite);
     match result {
-        Err(SolveError::ElementInverted { element, element_id, jacobian, step }) => {
+        Err(DrError::ElementInverted { element, element_id, jacobian, step }) => {
             assert_eq!(element_id, 500 + element as u64);
             assert!(jacobian <= 0.0);
             assert!(

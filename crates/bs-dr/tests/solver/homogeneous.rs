@@ -4,7 +4,7 @@
 //! the asserted 1e-6 relative accuracy (the termination estimate bounds the remaining error
 //! for a linearly converging iteration).
 
-use bs_dr::{DrParams, DynamicRelaxation, Loads, NoContact, Solver};
+use bs_dr::{DrParams, DynamicRelaxation, Loads, NoContact};
 use bs_material::Material;
 use bs_mesh::Vector3;
 

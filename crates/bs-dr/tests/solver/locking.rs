@@ -2,7 +2,7 @@
 //! interior nodes), bottom clamped, a 3×3-node patch in the middle of the top pushed down by
 //! 5% of the height. The reaction force on the patch measures the stiffness.
 
-use bs_dr::{DrParams, DynamicRelaxation, Loads, Model, Newton, NoContact, Solver};
+use bs_dr::{DrParams, DynamicRelaxation, Loads, Model, Newton, NoContact};
 use bs_material::Material;
 use bs_mesh::{Mesh, Vector3};
 
@@ -43,8 +43,12 @@ fn t4_locks_and_t4anp_does_not() {
             DynamicRelaxation::new(DrParams::default())
                 .solve(&model, &loads, &mut NoContact, &mut |_| {})
                 .unwrap()
+                .into_common()
         } else {
-            Newton::default().solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap()
+            Newton::default()
+                .solve(&model, &loads, &mut NoContact, &mut |_| {})
+                .unwrap()
+                .into_common()
         };
         results.push((tech, reaction(&model, &sol.displacements, &patch), sol.report.steps));
     }

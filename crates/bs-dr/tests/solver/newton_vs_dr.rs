@@ -39,7 +39,11 @@ fn dr_matches_newton_within_1e_3_mm() {
         let bulge = dr.displacements.iter().fold(0.0f64, |m, v| m.max(v.x.abs().max(v.y.abs())));
         assert!(bulge > 0.3, "{tech:?}: lateral bulge {bulge}");
         assert!(diff <= 1e-3, "{tech:?}: DR vs Newton max nodal difference {diff:e} mm");
-        assert!(newton.report.steps >= 10 && newton.report.steps <= 10 * 8, "{:?}", newton.report);
+        assert!(
+            newton.report.iterations >= 10 && newton.report.iterations <= 10 * 8,
+            "{:?}",
+            newton.report
+        );
     }
 }
 
@@ -50,7 +54,37 @@ fn newton_rejects_anp() {
     let loads = clamp_and_push(&mesh, 1.0, 0.1);
     let r = Newton::default().solve(&model, &loads, &mut NoContact, &mut |_| {});
     assert!(
-        matches!(r, Err(bs_dr::SolveError::Unsupported { what: "T4ANP tetrahedra", .. })),
+        matches!(r, Err(bs_dr::NewtonError::Unsupported { what: "T4ANP tetrahedra", .. })),
         "{r:?}"
     );
+}
+
+/// Behind the `Solver` trait each solver gives the same displacements as its own `solve`,
+/// and its own info becomes the common report (steps, error, evaluations).
+#[test]
+fn solvers_are_swappable_behind_the_trait() {
+    let (mesh, model) =
+        cube_model(Tech::H8, 2, 1.0, 0.1, Material::neo_hookean(3000.0, 0.45).unwrap());
+    let loads = clamp_and_push(&mesh, 1.0, 0.05);
+    let dr = DynamicRelaxation::default();
+    let newton = Newton::default();
+    let own_dr = dr.solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
+    let own_newton = newton.solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
+    let solvers: [&dyn Solver; 2] = [&dr, &newton];
+    for s in solvers {
+        let common = s.solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
+        let (u, steps, evaluations) = match s.name() {
+            "dynamic-relaxation" => {
+                (&own_dr.displacements, own_dr.report.steps, own_dr.report.steps)
+            }
+            _ => (
+                &own_newton.displacements,
+                own_newton.report.iterations,
+                own_newton.report.force_evaluations,
+            ),
+        };
+        assert_eq!(&common.displacements, u, "{}", s.name());
+        assert_eq!(common.report.solver, s.name());
+        assert_eq!((common.report.steps, common.report.force_evaluations), (steps, evaluations));
+    }
 }

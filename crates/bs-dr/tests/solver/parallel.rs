@@ -1,6 +1,6 @@
 //! Bit-identical results for 1 and 2 threads (explicit rayon pools).
 
-use bs_dr::{DrParams, DynamicRelaxation, Loads, NoContact, Solver};
+use bs_dr::{DrParams, DynamicRelaxation, Loads, NoContact};
 use bs_material::Material;
 use bs_mesh::Vector3;
 
@@ -69,7 +69,7 @@ fn dr_history_is_bit_identical_for_1_and_2_threads() {
                 DynamicRelaxation::new(params).solve(&model, &loads, &mut NoContact, &mut |p| {
                     trace.push(p.max_displacement.to_bits());
                 });
-            assert!(matches!(r, Err(bs_dr::SolveError::NoConvergence { steps: 60, .. })), "{r:?}");
+            assert!(matches!(r, Err(bs_dr::DrError::NoConvergence { steps: 60, .. })), "{r:?}");
             trace
         })
     };

@@ -18,7 +18,6 @@ use crate::{Mesh, TriSurface};
 
 pub mod inp;
 pub mod msh;
-mod msh_binary;
 pub mod obj;
 pub mod off;
 pub mod stl;

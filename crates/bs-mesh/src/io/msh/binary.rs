@@ -15,13 +15,14 @@ use std::path::Path;
 
 use nalgebra::Point3;
 
-use super::inp::snippet;
-use super::msh::{
-    Block, Header, State, Version, add_element, add_node, build_element, complete, element_type,
-    node_index, physical_name, unsupported_3d,
+use super::state::{
+    Block, State, add_element, add_node, build_element, complete, element_type, node_index,
+    physical_name, unsupported_3d,
 };
-use super::{Location, ParseError};
+use super::{Header, Version};
 use crate::Mesh;
+use crate::io::inp::snippet;
+use crate::io::{Location, ParseError};
 
 /// Byte cursor over a binary `.msh` file.
 struct Cursor<'a> {

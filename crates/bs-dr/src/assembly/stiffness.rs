@@ -10,36 +10,17 @@
 //! `Σ_e V_e κ_e ∇J_e (¼ Σ_{n∈e} c_n)ᵀ = Σ_n (V_n κ̄_n / 4) c_n c_nᵀ` (exact for one `κ`; with
 //! several regions `κ̄_n` is the volume average at the node, a symmetric approximation).
 //! That term is kept as a [`RankOneSum`], never assembled: it would couple each node with its
-//! two-ring.
+//! two-ring. `K₀` is returned as a [`NodalMatrix`] (the assembled element part plus the
+//! nodal term).
 
 use bs_mesh::Vector3;
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
-use crate::model::{Model, TetFormulation};
-use crate::sparse::{BlockCsr, RankOneSum};
+use crate::linalg::nodal::NodalMatrix;
+use crate::linalg::sparse::{BlockCsr, RankOneSum};
 
-/// `K₀` of a model: the assembled element part and, for T4ANP, the nodal volumetric part.
-#[derive(Debug, Clone)]
-pub struct LinearStiffness {
-    /// Element stiffness (deviatoric only for T4ANP tetrahedra).
-    pub elements: BlockCsr,
-    /// The T4ANP nodal volumetric term, if the model has T4ANP tetrahedra.
-    pub nodal: Option<RankOneSum>,
-}
-
-/// Scratch of [`LinearStiffness::mul`].
-#[derive(Debug, Clone, Default)]
-pub struct StiffnessScratch {
-    terms: Vec<f64>,
-}
-
-impl StiffnessScratch {
-    /// One value per nodal term.
-    pub(crate) fn terms_mut(&mut self) -> &mut [f64] {
-        &mut self.terms
-    }
-}
+use super::elements::Elements;
 
 /// `K_ab = V (λ gₐ⊗g_b + μ g_b⊗gₐ + μ (gₐ·g_b) I)`: the isotropic small-strain stiffness block
 /// coupling nodes `a` and `b` of an element with (mean) gradients `ga`, `gb`.
@@ -51,128 +32,79 @@ fn block(ga: &[f64; 3], gb: &[f64; 3], lambda: f64, mu: f64, vol: f64) -> Matrix
     })
 }
 
-impl LinearStiffness {
-    /// Assembles `K₀` for `model` (all nodes, no boundary conditions).
-    pub fn new(model: &Model) -> Self {
-        let n = model.node_count();
-        let anp = model.options.tet == TetFormulation::T4Anp && !model.tets.is_empty();
-        // Node adjacency from the element connectivity.
-        let mut adjacency: Vec<Vec<u32>> = vec![Vec::new(); n];
-        for t in &model.tets {
-            for &a in &t.nodes {
-                adjacency[a as usize].extend_from_slice(&t.nodes);
-            }
-        }
-        for h in &model.hexes {
-            for &a in &h.nodes {
-                adjacency[a as usize].extend_from_slice(&h.nodes);
-            }
-        }
-        adjacency.par_iter_mut().for_each(|row| {
-            row.sort_unstable();
-            row.dedup();
-        });
-        let mut k = BlockCsr::from_pattern(&adjacency);
-        // Row-parallel assembly through the node → element-slot map (fixed order per row).
-        let nt = model.tets.len();
-        let BlockCsr { ptr, col, val } = &mut k;
-        let rows: Vec<&mut [Matrix3<f64>]> = {
-            let mut rest: &mut [Matrix3<f64>] = val;
-            let mut out = Vec::with_capacity(n);
-            for r in 0..n {
-                let len = (ptr[r + 1] - ptr[r]) as usize;
-                let (head, tail) = rest.split_at_mut(len);
-                out.push(head);
-                rest = tail;
-            }
-            out
-        };
-        let ptr = &*ptr;
-        let col = &*col;
-        rows.into_par_iter().enumerate().with_min_len(128).for_each(|(r, row)| {
-            let cols = &col[ptr[r] as usize..ptr[r + 1] as usize];
-            let pos = |c: u32| cols.binary_search(&c).expect("node pair in the adjacency pattern");
-            let lo = model.gather_ptr[r] as usize;
-            let hi = model.gather_ptr[r + 1] as usize;
-            for &s in &model.gather_slot[lo..hi] {
-                let s = s as usize;
-                if s < 4 * nt {
-                    let t = &model.tets[s / 4];
-                    let el = model.solids[t.mat as usize].material.elastic();
-                    let lambda = if anp { -2.0 / 3.0 * el.mu } else { el.lambda() };
-                    let a = s % 4;
-                    for b in 0..4 {
-                        row[pos(t.nodes[b])] += block(&t.g[a], &t.g[b], lambda, el.mu, t.vol);
-                    }
-                } else {
-                    let s = s - 4 * nt;
-                    let h = &model.hexes[s / 8];
-                    let el = model.solids[h.mat as usize].material.elastic();
-                    let a = s % 8;
-                    for b in 0..8 {
-                        let mut kb = block(&h.g[a], &h.g[b], el.lambda(), el.mu, h.vol);
-                        for i in 0..3 {
-                            kb[(i, i)] += h.hg[a][b];
-                        }
-                        row[pos(h.nodes[b])] += kb;
+/// Assembles `K₀` of `elements` (all nodes, no boundary conditions): the element stiffness
+/// (deviatoric only for T4ANP tetrahedra) and, for T4ANP, the nodal volumetric term.
+pub(crate) fn linear_stiffness(elements: &Elements) -> NodalMatrix {
+    let anp = elements.anp();
+    let mut k = BlockCsr::from_pattern(&adjacency(elements));
+    // Row-parallel assembly through the node → element-slot map (fixed order per row).
+    let BlockCsr { ptr, col, val } = &mut k;
+    let rows = split_rows(ptr, val);
+    let (ptr, col) = (&*ptr, &*col);
+    rows.into_par_iter().enumerate().with_min_len(128).for_each(|(r, row)| {
+        let cols = &col[ptr[r] as usize..ptr[r + 1] as usize];
+        let pos = |c: u32| cols.binary_search(&c).expect("node pair in the adjacency pattern");
+        for &s in elements.slots.of(r) {
+            let (e, a) = elements.slot(s as usize);
+            let el = elements.solids[e.mat].material.elastic();
+            let lambda = if anp && e.hg.is_none() { -2.0 / 3.0 * el.mu } else { el.lambda() };
+            for b in 0..e.len() {
+                let mut kb = block(&e.g[a], &e.g[b], lambda, el.mu, e.vol);
+                if let Some(hg) = e.hg {
+                    for i in 0..3 {
+                        kb[(i, i)] += hg[a][b];
                     }
                 }
-            }
-        });
-        let nodal = anp.then(|| nodal_volumetric(model));
-        LinearStiffness { elements: k, nodal }
-    }
-
-    /// Scratch buffers for [`mul`](Self::mul).
-    pub fn scratch(&self) -> StiffnessScratch {
-        StiffnessScratch { terms: vec![0.0; self.nodal.as_ref().map_or(0, RankOneSum::terms)] }
-    }
-
-    /// `y = K₀ x`.
-    pub fn mul(&self, x: &[Vector3<f64>], y: &mut [Vector3<f64>], s: &mut StiffnessScratch) {
-        self.elements.mul(x, y);
-        if let Some(nodal) = &self.nodal {
-            nodal.project_into(x, &mut s.terms);
-            nodal.add_expand(&s.terms, y);
-        }
-    }
-
-    /// The 3×3 diagonal block of node `a` (element and nodal parts).
-    pub fn diagonal(&self, a: usize) -> Matrix3<f64> {
-        let mut d = self.elements.diagonal(a);
-        if let Some(nodal) = &self.nodal {
-            let (lo, hi) = (nodal.t_ptr[a] as usize, nodal.t_ptr[a + 1] as usize);
-            for k in lo..hi {
-                let c = nodal.t_val[k];
-                d += c * c.transpose() * nodal.weight[nodal.t_col[k] as usize];
+                row[pos(e.nodes[b])] += kb;
             }
         }
-        d
+    });
+    let nodal = anp.then(|| nodal_volumetric(elements));
+    NodalMatrix { assembled: k, nodal }
+}
+
+/// The node graph of the element connectivity: every row sorted, the diagonal included.
+fn adjacency(elements: &Elements) -> Vec<Vec<u32>> {
+    let mut adjacency: Vec<Vec<u32>> = vec![Vec::new(); elements.nodes()];
+    for (_, e) in elements.iter() {
+        for &a in e.nodes {
+            adjacency[a as usize].extend_from_slice(e.nodes);
+        }
     }
+    adjacency.par_iter_mut().for_each(|row| {
+        row.sort_unstable();
+        row.dedup();
+    });
+    adjacency
+}
+
+/// The rows of a block matrix's values as disjoint mutable slices (for row-parallel fills).
+fn split_rows<'a>(ptr: &[u32], val: &'a mut [Matrix3<f64>]) -> Vec<&'a mut [Matrix3<f64>]> {
+    let mut rest = val;
+    let mut out = Vec::with_capacity(ptr.len() - 1);
+    for w in ptr.windows(2) {
+        let (head, tail) = rest.split_at_mut((w[1] - w[0]) as usize);
+        out.push(head);
+        rest = tail;
+    }
+    out
 }
 
 /// The T4ANP nodal volumetric term `Σ_n (V_n κ̄_n / 4) c_n c_nᵀ` (see the module docs).
-fn nodal_volumetric(model: &Model) -> RankOneSum {
-    let n = model.node_count();
-    let nt = model.tets.len();
+fn nodal_volumetric(elements: &Elements) -> RankOneSum {
+    let n = elements.nodes();
     type Row = (f64, Vec<(u32, Vector3<f64>)>);
     let rows: Vec<Row> = (0..n)
         .into_par_iter()
         .with_min_len(128)
         .map(|r| {
-            let lo = model.gather_ptr[r] as usize;
-            let hi = model.gather_ptr[r + 1] as usize;
             let mut vol = 0.0;
             let mut vk = 0.0;
             let mut entries: Vec<(u32, Vector3<f64>)> = Vec::new();
-            for &s in &model.gather_slot[lo..hi] {
-                let s = s as usize;
-                if s >= 4 * nt {
-                    continue;
-                }
-                let t = &model.tets[s / 4];
+            for &s in elements.slots.tet_slots(r) {
+                let t = &elements.tets[s as usize / 4];
                 vol += t.vol;
-                vk += t.vol * model.solids[t.mat as usize].material.elastic().kappa;
+                vk += t.vol * elements.solids[t.mat as usize].material.elastic().kappa;
                 for b in 0..4 {
                     entries.push((t.nodes[b], Vector3::from(t.g[b]) * t.vol));
                 }
@@ -201,7 +133,7 @@ fn nodal_volumetric(model: &Model) -> RankOneSum {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{ModelOptions, Solid};
+    use crate::{Model, ModelOptions, Solid, TetFormulation};
     use bs_material::Material;
     use bs_mesh::structured::box_mesh;
 
@@ -218,7 +150,7 @@ mod tests {
         let solid =
             Solid { material: Material::neo_hookean(3000.0, 0.45).unwrap(), density: 1000.0 };
         let model = Model::uniform(&mesh, solid, ModelOptions { tet, hourglass: 0.1 }).unwrap();
-        let k = LinearStiffness::new(&model);
+        let k = model.linear_stiffness();
         let n = model.node_count();
         let v: Vec<Vector3<f64>> = (0..n)
             .map(|i| {

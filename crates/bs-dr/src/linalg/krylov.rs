@@ -2,12 +2,12 @@
 //! *Iterative methods for sparse linear systems*, §9.3.2): the linear solver inside each
 //! Newton iteration. Right preconditioning makes the residual it minimises the true residual
 //! `b − A x`, the quantity the inexact Newton method controls. Deterministic for any thread
-//! count (see [`crate::sparse::dot`]); all buffers are caller-owned.
+//! count (see [`super::sparse::dot`]); all buffers are caller-owned.
 
 use bs_mesh::Vector3;
 use rayon::prelude::*;
 
-use crate::sparse::norm;
+use super::sparse::norm;
 
 /// A linear map on nodal vectors (`out = A v`), as the solvers pass operators around.
 pub type NodalMap<'a> = dyn FnMut(&[Vector3<f64>], &mut [Vector3<f64>]) + 'a;

@@ -1,0 +1,30 @@
+//! Assembly: element work run over all elements and combined into nodal quantities, with
+//! results that do not depend on the thread count.
+//!
+//! * [`elements`]: the model's elements in assembly order (tets, then hexes), their blocks
+//!   and the loops over both;
+//! * [`slots`]: the node → force-slot map (every node sums its slots in a fixed order);
+//! * [`forces`]: internal forces through the SIMD kernels, [`gather`]ed per node, with
+//!   caller-owned [`workspace`]s; [`inversion`]: which element inverted;
+//! * [`scalar`]: the same forces through the scalar reference kernels;
+//! * [`stiffness`]: `K₀`, the small-strain stiffness the preconditioner is built from;
+//! * [`tangent`]: the consistent element tangent of the Newton reference.
+//!
+//! Architecture invariant: assembly imports the element, kernel and linear-algebra layers;
+//! it knows no solver, load or contact.
+
+pub(crate) mod elements;
+pub(crate) mod forces;
+pub(crate) mod gather;
+pub(crate) mod inversion;
+pub(crate) mod scalar;
+pub(crate) mod slots;
+pub(crate) mod step_bound;
+pub(crate) mod stiffness;
+pub(crate) mod tangent;
+pub(crate) mod workspace;
+
+pub use inversion::Inversion;
+pub use scalar::ReferenceWorkspace;
+pub use step_bound::StepBound;
+pub use workspace::Workspace;

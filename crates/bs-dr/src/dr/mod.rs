@@ -1,0 +1,265 @@
+//! Adaptive Dynamic Relaxation (the explicit steady-state solver).
+//!
+//! The iteration (Joldes, Wittek & Miller's adaptive DR, a second-order Richardson
+//! iteration with mass-proportional damping), with pseudo time step `h = 1`:
+//!
+//! `u⁺ = u + ρ² (u − u⁻) + ((1+ρ) h / 2)² M⁻¹ (f_ext − f_int(u))`, `f_ext = 0` (zero traction).
+//!
+//! * Masses are fictitious ([`Model::dr_masses_into`]): element `e` gets the mass that makes
+//!   its own critical step `h / step_fraction`, so every node has the same stable step.
+//! * The convergence rate `ρ = (κ − 1)/(κ + 1)`, `κ = 2/(ω_min h)`, comes from a
+//!   Rayleigh-quotient estimate of the lowest eigenvalue of `M⁻¹K` taken from snapshots every
+//!   `snapshot_interval` steps after the ramp: `ω²_min ≈ |Δuᵀ Δf| / (Δuᵀ M Δu)` over free
+//!   DOFs. A new ρ is accepted once two successive estimates agree within 10%. Before that a
+//!   geometric guess is used (quarter-wave of the fictitious shear wave over the bounding-box
+//!   diagonal).
+//! * Termination: `err = max|Δu| ρₑ/(1 − ρₑ) < tolerance × load scale` for `consecutive`
+//!   steps in a row, never a fixed step count. `ρₑ` is the more pessimistic of the rate from
+//!   `0.9 ω_min` and the decay rate of `max|Δu|` observed over the last snapshot window.
+//! * Prescribed components follow the 3-4-5 ramp over `ramp_steps` steps, then stay.
+//! * Guard: non-finite values, an inverted element, alternating growth of `Δu` (time step
+//!   above critical) and displacements beyond `divergence_factor × load scale` stop the run
+//!   with a typed [`DrError`].
+//!
+//! The loop below calls named parts: [`params`] (ranges), [`rayleigh`] (the estimator of ρ
+//! and of the error), [`guard`] (what stops a run that cannot converge) and [`outcome`]
+//! ([`DrInfo`], [`DrError`] and their conversion to the common types).
+
+pub mod guard;
+pub mod outcome;
+pub mod params;
+pub mod rayleigh;
+
+use std::time::Instant;
+
+use bs_mesh::{Point3, Vector3};
+
+pub use outcome::{DrError, DrInfo};
+pub use params::DrParams;
+
+use self::guard::{GrowthGuard, StepChange};
+use self::rayleigh::RayleighEstimator;
+use crate::assembly::Workspace;
+use crate::contact::{Contact, ContactReport};
+use crate::loads::{Loads, ramp};
+use crate::model::Model;
+use crate::solver::{Progress, Solution, SolveError, Solver, load_scale};
+
+/// The adaptive Dynamic Relaxation solver.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct DynamicRelaxation {
+    /// Parameters.
+    pub params: DrParams,
+}
+
+/// What the loop reads: masses, which DOFs are free and fixed, and the fixed values.
+struct Setup {
+    masses: Vec<f64>,
+    inv_m: Vec<f64>,
+    free: Vec<usize>,
+    fixed: Vec<usize>,
+    /// Start and final values of the constrained DOFs (the ramp goes from one to the other).
+    fixed_start: Vec<f64>,
+    fixed_value: Vec<f64>,
+}
+
+impl Setup {
+    fn new(model: &Model, loads: &Loads, step_fraction: f64, start: &[Vector3<f64>]) -> Self {
+        let mut masses = vec![0.0; model.node_count()];
+        model.dr_masses_into(step_fraction, &mut masses);
+        let inv_m = masses.iter().map(|&m| if m > 0.0 { 1.0 / m } else { 0.0 }).collect();
+        let (free, fixed) = loads.split_dofs();
+        let fixed_value = fixed.iter().map(|&d| loads.value(d / 3, d % 3)).collect();
+        let fixed_start = fixed.iter().map(|&d| start[d / 3][d % 3]).collect();
+        Setup { masses, inv_m, free, fixed, fixed_start, fixed_value }
+    }
+
+    /// `u⁺ = u + ρ²(u − u⁻) − ¼(1 + ρ)² M⁻¹ f` on the free DOFs; the fixed ones at `load`
+    /// of the way from their start to their final values.
+    fn step(&self, s: &mut State, rho: f64, load: f64) {
+        let beta = 0.25 * (1.0 + rho) * (1.0 + rho);
+        let r2 = rho * rho;
+        let (u, u_prev, f) = (&s.u, &s.u_prev, &s.f);
+        for &d in &self.free {
+            let (a, c) = (d / 3, d % 3);
+            s.u_next[a][c] =
+                u[a][c] + r2 * (u[a][c] - u_prev[a][c]) - beta * f[a][c] * self.inv_m[a];
+        }
+        for (i, &d) in self.fixed.iter().enumerate() {
+            let (a, b) = (self.fixed_start[i], self.fixed_value[i]);
+            s.u_next[d / 3][d % 3] = a + (b - a) * load;
+        }
+    }
+}
+
+/// The iterates and scratch of one solve, allocated before the loop.
+struct State {
+    u: Vec<Vector3<f64>>,
+    u_prev: Vec<Vector3<f64>>,
+    u_next: Vec<Vector3<f64>>,
+    f: Vec<Vector3<f64>>,
+    positions: Vec<Point3<f64>>,
+    ws: Workspace,
+}
+
+impl State {
+    fn new(model: &Model, start: &[Vector3<f64>]) -> Self {
+        let zero = vec![Vector3::<f64>::zeros(); model.node_count()];
+        State {
+            u: start.to_vec(),
+            u_prev: start.to_vec(),
+            u_next: start.to_vec(),
+            f: zero,
+            positions: model.reference().to_vec(),
+            ws: model.workspace(),
+        }
+    }
+
+    /// The kinematic contact on `u_next`: nodes the handler moved take its position in the
+    /// components that are not prescribed.
+    fn contact(
+        &mut self,
+        model: &Model,
+        loads: &Loads,
+        contact: &mut dyn Contact,
+    ) -> ContactReport {
+        let reference = model.reference();
+        for (x, (x0, un)) in self.positions.iter_mut().zip(reference.iter().zip(&self.u_next)) {
+            *x = x0 + un;
+        }
+        let report = contact.enforce(&mut self.positions);
+        for a in 0..reference.len() {
+            let x = self.positions[a];
+            if x != reference[a] + self.u_next[a] {
+                let moved = x - reference[a];
+                for c in 0..3 {
+                    if !loads.is_constrained(a, c) {
+                        self.u_next[a][c] = moved[c];
+                    }
+                }
+            }
+        }
+        report
+    }
+
+    /// `u⁻ ← u ← u⁺`.
+    fn advance(&mut self) {
+        std::mem::swap(&mut self.u_prev, &mut self.u);
+        std::mem::swap(&mut self.u, &mut self.u_next);
+    }
+}
+
+impl DynamicRelaxation {
+    /// A solver with the given parameters.
+    pub fn new(params: DrParams) -> Self {
+        DynamicRelaxation { params }
+    }
+
+    /// Geometric first guess of `ω_min` (units of 1/h): a quarter shear wave across the
+    /// bounding-box diagonal with the fictitious density.
+    fn omega_guess(model: &Model, masses: &[f64]) -> f64 {
+        let (vol, mu_vol) = model.volume_and_shear();
+        let mass: f64 = masses.iter().sum();
+        let diag = model.diagonal();
+        let c = (mu_vol / vol / (mass / vol)).sqrt();
+        std::f64::consts::FRAC_PI_2 * c / diag
+    }
+
+    /// Solves for the equilibrium displacements of `model` under `loads` with the kinematic
+    /// `contact` enforced after every step, calling `observer` once per step.
+    pub fn solve(
+        &self,
+        model: &Model,
+        loads: &Loads,
+        contact: &mut dyn Contact,
+        observer: &mut dyn FnMut(&Progress),
+    ) -> Result<Solution<DrInfo>, DrError> {
+        let zero = vec![Vector3::zeros(); model.node_count()];
+        self.solve_from(model, &zero, loads, contact, observer)
+    }
+
+    /// [`solve`](Self::solve) from the displacements `start` (at rest) instead of zero: the
+    /// prescribed components ramp from their values in `start` to those of `loads` (the
+    /// fallback of Newton–Krylov's continuation, which hands over its last converged state).
+    pub fn solve_from(
+        &self,
+        model: &Model,
+        start: &[Vector3<f64>],
+        loads: &Loads,
+        contact: &mut dyn Contact,
+        observer: &mut dyn FnMut(&Progress),
+    ) -> Result<Solution<DrInfo>, DrError> {
+        let p = self.params;
+        p.validate()?;
+        let n = model.node_count();
+        if loads.node_count() != n || start.len() != n {
+            let got = if start.len() != n { start.len() } else { loads.node_count() };
+            return Err(DrError::LoadMismatch { expected: n, got });
+        }
+        let start_time = Instant::now();
+        let setup = Setup::new(model, loads, p.step_fraction, start);
+        let scale = load_scale(model, loads);
+        let tol = p.tolerance * scale;
+        let ramp_steps = p.ramp_steps.max(1);
+        let omega = Self::omega_guess(model, &setup.masses);
+        let mut rayleigh = RayleighEstimator::new(n, omega, p.rho, ramp_steps, p.snapshot_interval);
+        let mut guard = GrowthGuard::new(p.step_fraction, p.divergence_factor * scale);
+        let mut s = State::new(model, start);
+        let (mut maxd, mut below, mut err) = (0.0f64, 0usize, f64::INFINITY);
+        for step in 1..=p.max_steps {
+            // Forces at the state after `step − 1` steps, and a Rayleigh snapshot if due.
+            if let Err(inv) = model.internal_forces_into(&s.u, &mut s.ws, &mut s.f) {
+                return Err(guard.inverted(step, inv));
+            }
+            rayleigh.observe(step - 1, &s.u, &s.f, &setup.masses, &setup.free, maxd);
+            let (rho, load) = (rayleigh.rho(), ramp(step as f64 / ramp_steps as f64));
+            setup.step(&mut s, rho, load);
+            let contact_report = s.contact(model, loads, contact);
+            let change = StepChange::of(&setup.free, &s.u_next, &s.u, &s.u_prev);
+            guard.check(step, &change)?;
+            maxd = change.maxd;
+            s.advance();
+            err = rayleigh.error_estimate(step, maxd);
+            observer(&Progress {
+                step,
+                err,
+                rho,
+                load_factor: load,
+                max_displacement: change.maxu,
+                contact: contact_report,
+                linear_iterations: 0,
+                force_evaluations: step,
+            });
+            below = if err < tol { below + 1 } else { 0 };
+            if below >= p.consecutive {
+                let info = DrInfo {
+                    steps: step,
+                    err,
+                    tolerance: tol,
+                    rho,
+                    omega_min: rayleigh.omega(),
+                    contact: contact_report,
+                    elapsed: start_time.elapsed(),
+                };
+                return Ok(Solution { displacements: s.u, report: info });
+            }
+        }
+        Err(DrError::NoConvergence { err, steps: p.max_steps, tolerance: tol })
+    }
+}
+
+impl Solver for DynamicRelaxation {
+    fn name(&self) -> &'static str {
+        "dynamic-relaxation"
+    }
+
+    fn solve(
+        &self,
+        model: &Model,
+        loads: &Loads,
+        contact: &mut dyn Contact,
+        observer: &mut dyn FnMut(&Progress),
+    ) -> Result<Solution, SolveError> {
+        Ok(DynamicRelaxation::solve(self, model, loads, contact, observer)?.into_common())
+    }
+}

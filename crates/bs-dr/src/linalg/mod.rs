@@ -1,0 +1,13 @@
+//! Linear algebra on nodal vectors (`[Vector3<f64>]`, one entry per mesh node): the
+//! deterministic vector kernels and sparse matrices ([`sparse`]), the two-part matrix of
+//! `K₀` ([`nodal`]), restarted GMRES ([`krylov`]) and the two-level preconditioner
+//! ([`twolevel`]: parameters, nodal projector, coarse space, setup and cycle).
+//!
+//! Architecture invariant: this folder knows matrices, vectors, node coordinates and
+//! constraints, never elements or the model; it imports only the SIMD lanes of `kernels`.
+//! Every reduction is bit-identical for any thread count.
+
+pub mod krylov;
+pub mod nodal;
+pub mod sparse;
+pub mod twolevel;

@@ -1,0 +1,194 @@
+//! Applying the preconditioner: one symmetric cycle `x = B b` for `Π K₀ Π` (Chebyshev
+//! pre-smoothing, coarse correction, Chebyshev post-smoothing), on caller-owned scratch.
+
+use bs_mesh::Vector3;
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::cholesky::LltRef;
+use faer::{Conj, MatMut, Par};
+use rayon::prelude::*;
+
+use super::projector::{Constraints, Projector};
+use super::setup::TwoLevel;
+use crate::kernels::simd::dispatch;
+use crate::linalg::nodal::NodalScratch;
+use crate::linalg::sparse::Rows;
+
+/// Nodes per rayon task in the cycle's passes: few enough tasks that the fork-join overhead
+/// stays small next to the work of a pass.
+const ROWS: usize = 2048;
+
+/// Caller-owned buffers of [`TwoLevel::apply`].
+pub struct TwoLevelScratch {
+    r: Vec<Vector3<f64>>,
+    d: Vec<Vector3<f64>>,
+    t: Vec<Vector3<f64>>,
+    e: Vec<Vector3<f64>>,
+    k: NodalScratch,
+    coarse: Vec<f64>,
+    mem: MemBuffer,
+}
+
+impl std::fmt::Debug for TwoLevelScratch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TwoLevelScratch")
+            .field("nodes", &self.r.len())
+            .field("coarse", &self.coarse.len())
+            .finish()
+    }
+}
+
+impl TwoLevel {
+    /// Scratch buffers for [`apply`](Self::apply).
+    pub fn scratch(&self) -> TwoLevelScratch {
+        let n = self.p.rows();
+        let nc = self.pt.rows();
+        TwoLevelScratch {
+            r: vec![Vector3::zeros(); n],
+            d: vec![Vector3::zeros(); n],
+            t: vec![Vector3::zeros(); n],
+            e: vec![Vector3::zeros(); n],
+            k: self.k.scratch(),
+            coarse: vec![0.0; nc],
+            mem: MemBuffer::new(self.coarse.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq)),
+        }
+    }
+
+    /// `f(a, (Π K₀ x)_a)` for every node `a`, in one pass over the rows after the nodal
+    /// terms' pass (single-precision operator; `x` in the range of `Π`).
+    fn op_with(
+        &self,
+        pi: &Projector,
+        x: &[Vector3<f64>],
+        s: &mut NodalScratch,
+        out: &mut [Vector3<f64>],
+        f: impl Fn(usize, &mut Vector3<f64>, Vector3<f64>) + Sync,
+    ) {
+        if let Some(nodal) = &self.op32.nodal {
+            nodal.project_into(x, s.terms_mut());
+        }
+        let terms: &[f64] = s.terms_mut();
+        let nodal = self.op32.nodal.as_ref();
+        let elements = &self.op32.assembled;
+        let f = &f;
+        out.par_chunks_mut(ROWS).enumerate().for_each(|(k, chunk)| {
+            dispatch(Rows {
+                a: elements,
+                nodal,
+                terms,
+                x,
+                out: chunk,
+                start: k * ROWS,
+                then: |a: usize, o: &mut Vector3<f64>, y: Vector3<f64>| {
+                    let y = if pi.constrained[a] { pi.matrix[a] * y } else { y };
+                    f(a, o, y);
+                },
+            })
+        });
+    }
+
+    /// Chebyshev smoothing from zero: `x += p(D⁻¹A) D⁻¹ r`; `r` is overwritten.
+    #[allow(clippy::too_many_arguments)]
+    fn chebyshev(
+        &self,
+        con: &Constraints,
+        r: &mut [Vector3<f64>],
+        x: &mut [Vector3<f64>],
+        d: &mut [Vector3<f64>],
+        t: &mut [Vector3<f64>],
+        s: &mut NodalScratch,
+    ) {
+        let hi = self.lambda_max;
+        let lo = hi * self.params.lower;
+        let theta = 0.5 * (hi + lo);
+        let delta = 0.5 * (hi - lo);
+        let sigma = theta / delta;
+        let mut rho = 1.0 / sigma;
+        let inv = &con.inv_diag;
+        let pi = &con.projector;
+        d.par_iter_mut()
+            .zip(r.par_iter())
+            .zip(x.par_iter_mut())
+            .enumerate()
+            .with_min_len(ROWS)
+            .for_each(|(a, ((da, ra), xa))| {
+                *da = inv[a] * ra / theta;
+                *xa += *da;
+            });
+        for _ in 1..self.params.degree {
+            self.op_with(pi, d, s, t, |_, ta, y| *ta = y);
+            let rho_new = 1.0 / (2.0 * sigma - rho);
+            let (c1, c2) = (rho_new * rho, 2.0 * rho_new / delta);
+            r.par_iter_mut()
+                .zip(d.par_iter_mut())
+                .zip(t.par_iter())
+                .zip(x.par_iter_mut())
+                .enumerate()
+                .with_min_len(ROWS)
+                .for_each(|(a, (((ra, da), ta), xa))| {
+                    *ra -= ta;
+                    *da = *da * c1 + inv[a] * *ra * c2;
+                    *xa += *da;
+                });
+            rho = rho_new;
+        }
+    }
+
+    /// `x = B b`: one symmetric two-level cycle for `Π K₀ Π`, `b` in the range of `Π`.
+    pub fn apply(
+        &self,
+        con: &Constraints,
+        b: &[Vector3<f64>],
+        x: &mut [Vector3<f64>],
+        s: &mut TwoLevelScratch,
+    ) {
+        let TwoLevelScratch { r, d, t, e, k, coarse, mem } = s;
+        let pi = &con.projector;
+        x.par_iter_mut().with_min_len(ROWS).for_each(|v| *v = Vector3::zeros());
+        r.copy_from_slice(b);
+        self.chebyshev(con, r, x, d, t, k);
+        // Residual after pre-smoothing, coarse correction, and the residual after it.
+        self.op_with(pi, x, k, r, |a, ra, y| *ra = b[a] - y);
+        self.coarse_correct(pi, r, e, coarse, mem);
+        x.par_iter_mut().zip(e.par_iter()).with_min_len(ROWS).for_each(|(xa, ea)| *xa += ea);
+        self.op_with(pi, e, k, r, |_, ra, y| *ra -= y);
+        // Post-smoothing accumulates into x directly.
+        self.chebyshev(con, r, x, d, t, k);
+    }
+
+    /// `e = Π P A_c⁻¹ Pᵀ Π r`.
+    fn coarse_correct(
+        &self,
+        pi: &Projector,
+        r: &[Vector3<f64>],
+        e: &mut [Vector3<f64>],
+        c: &mut [f64],
+        mem: &mut MemBuffer,
+    ) {
+        c.par_iter_mut().enumerate().with_min_len(64).for_each(|(i, ci)| {
+            let (nodes, vals) = self.pt.row(i);
+            let mut acc = 0.0;
+            for (&a, v) in nodes.iter().zip(vals) {
+                acc += v.dot(&r[a as usize]);
+            }
+            *ci = acc;
+        });
+        let llt = LltRef::new(&self.coarse.symbolic, &self.coarse.values);
+        let nc = c.len();
+        llt.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(c, nc, 1),
+            Par::Seq,
+            MemStack::new(mem),
+        );
+        let c: &[f64] = c;
+        e.par_iter_mut().enumerate().with_min_len(256).for_each(|(a, ea)| {
+            let (cols, vals) = self.p.row(a);
+            let mut acc = Vector3::zeros();
+            for (&j, v) in cols.iter().zip(vals) {
+                acc += v * c[j as usize];
+            }
+            *ea = acc;
+        });
+        pi.apply(e);
+    }
+}

@@ -1,0 +1,34 @@
+//! The parameters of the two-level preconditioner and why it can fail to build.
+
+/// Parameters of [`TwoLevel`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TwoLevelParams {
+    /// Aggregate (coarse cell) size in mean edge lengths of the mesh. Default 4.2.
+    pub aggregate_size: f64,
+    /// Degree of the Chebyshev smoother (sweeps before and after the coarse correction).
+    /// Default 3.
+    pub degree: usize,
+    /// Lower end of the smoothed interval as a fraction of `λ_max(D⁻¹K₀)`. Default 0.1.
+    pub lower: f64,
+}
+
+impl Default for TwoLevelParams {
+    fn default() -> Self {
+        TwoLevelParams { aggregate_size: 4.2, degree: 3, lower: 0.1 }
+    }
+}
+
+/// Why the preconditioner could not be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TwoLevelError {
+    /// The coarse matrix is not positive definite: the model has a rigid-body mode that no
+    /// fixed component removes.
+    #[error(
+        "the coarse stiffness is singular: the model can move as a rigid body (fix or prescribe \
+         components of at least three non-collinear nodes)"
+    )]
+    Singular,
+    /// The coarse factorisation ran out of memory or indices.
+    #[error("the coarse factorisation failed: {0}")]
+    Factor(String),
+}

@@ -1,0 +1,125 @@
+//! The linearised equilibrium of one Newton iteration, `Π J Π δ = −Π (f + J u_p)`, solved by
+//! GMRES with the two-level preconditioner. `J` is applied matrix-free as a forward
+//! difference of the internal forces (so every element technology is linearised exactly as
+//! its force kernel); `u_p` is the particular displacement (prescribed values still to apply
+//! and the normal moves that put held contact nodes on their features); `Π` removes fixed
+//! and held directions.
+
+use std::time::{Duration, Instant};
+
+use bs_mesh::Vector3;
+use rayon::prelude::*;
+
+use super::Work;
+use crate::assembly::{Inversion, Workspace};
+use crate::linalg::krylov::{Gmres, GmresInfo};
+use crate::linalg::sparse::max_abs;
+use crate::linalg::twolevel::{Constraints, TwoLevel, TwoLevelScratch};
+use crate::model::Model;
+
+/// Internal forces with the count and time kept.
+pub(crate) fn forces(
+    model: &Model,
+    u: &[Vector3<f64>],
+    ws: &mut Workspace,
+    f: &mut [Vector3<f64>],
+    work: &mut Work,
+) -> Result<(), Inversion> {
+    let t = Instant::now();
+    work.forces += 1;
+    let r = model.internal_forces_into(u, ws, f);
+    work.time.forces += t.elapsed();
+    r
+}
+
+/// Buffers of [`solve`], sized once per solve.
+#[derive(Debug)]
+pub(crate) struct LinearBuffers {
+    pub up: Vec<Vector3<f64>>,
+    pub fd: Vec<Vector3<f64>>,
+    pub rhs: Vec<Vector3<f64>>,
+    pub gmres: Gmres,
+    pub tl: TwoLevelScratch,
+}
+
+/// The linearisation point and what is held there.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Linearisation<'a> {
+    pub model: &'a Model,
+    pub u: &'a [Vector3<f64>],
+    pub f: &'a [Vector3<f64>],
+    pub particular: &'a [Vector3<f64>],
+    /// Tangential springs of held nodes on curved features: `(node, stiffness)`.
+    pub springs: &'a [(usize, f64)],
+    pub cons: &'a Constraints,
+    pub tl: &'a TwoLevel,
+}
+
+/// Solves for `delta` to the relative residual `rtol` (at most `max_iterations` GMRES
+/// iterations); `Err` when the particular displacement itself inverts an element within the
+/// difference step.
+pub(crate) fn solve(
+    lin: &Linearisation<'_>,
+    b: &mut LinearBuffers,
+    ws: &mut Workspace,
+    delta: &mut [Vector3<f64>],
+    rtol: f64,
+    max_iterations: usize,
+    work: &mut Work,
+) -> Result<GmresInfo, Inversion> {
+    let (model, u, f) = (lin.model, lin.u, lin.f);
+    let pi = &lin.cons.projector;
+    // Right-hand side −Π (f + J u_p).
+    let pmax = max_abs(lin.particular);
+    let umax = max_abs(u);
+    if pmax > 0.0 {
+        let h = 1e-7 * (1.0 + umax) / pmax;
+        b.up.par_iter_mut()
+            .zip(u.par_iter())
+            .zip(lin.particular.par_iter())
+            .for_each(|((w, a), p)| *w = a + p * h);
+        forces(model, &b.up, ws, &mut b.fd, work)?;
+        b.rhs.par_iter_mut().zip(f.par_iter()).zip(b.fd.par_iter()).for_each(|((r, f0), f1)| {
+            *r = -(f0 + (f1 - f0) / h);
+        });
+    } else {
+        b.rhs.par_iter_mut().zip(f.par_iter()).for_each(|(r, f0)| *r = -f0);
+    }
+    pi.apply(&mut b.rhs);
+    let up = &mut b.up;
+    let mut op = |v: &[Vector3<f64>], out: &mut [Vector3<f64>]| {
+        let vmax = max_abs(v);
+        if vmax == 0.0 {
+            out.iter_mut().for_each(|o| *o = Vector3::zeros());
+            return;
+        }
+        let h = 1e-7 * (1.0 + umax) / vmax;
+        up.par_iter_mut().zip(u.par_iter()).zip(v.par_iter()).for_each(|((w, a), d)| {
+            *w = a + d * h;
+        });
+        match forces(model, up, ws, out, work) {
+            Ok(()) => {
+                out.par_iter_mut().zip(f.par_iter()).for_each(|(o, f0)| *o = (*o - f0) / h);
+                for &(a, k) in lin.springs {
+                    out[a] += v[a] * k;
+                }
+                pi.apply(out);
+            }
+            // A direction that inverts an element within h: treat as infinitely stiff
+            // (GMRES then leaves it alone).
+            Err(_) => out.iter_mut().zip(v).for_each(|(o, vi)| *o = vi * 1e30),
+        }
+    };
+    let mut prec_time = Duration::ZERO;
+    let (tl, cons, scratch) = (lin.tl, lin.cons, &mut b.tl);
+    let mut prec = |r: &[Vector3<f64>], z: &mut [Vector3<f64>]| {
+        let t = Instant::now();
+        tl.apply(cons, r, z, scratch);
+        prec_time += t.elapsed();
+    };
+    let info = b.gmres.solve(&mut op, &mut prec, &b.rhs, delta, rtol, max_iterations);
+    work.linear += info.iterations;
+    work.time.preconditioner += prec_time;
+    pi.apply(delta);
+    Ok(info)
+}
