@@ -114,7 +114,7 @@ pub(crate) fn element_bound<const N: usize>(
     let f = Matrix3::identity() + gradient(u, nodes, g);
     let dg = gradient(d, nodes, g);
     let c = det_cubic(&f, &dg);
-    if !(c[0] > 0.0) {
+    if c[0].is_nan() || c[0] <= 0.0 {
         // Already inverted (or not finite): no step keeps it valid.
         return 0.0;
     }

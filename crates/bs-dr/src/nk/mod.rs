@@ -152,6 +152,9 @@ pub(crate) struct Work {
     pub time: Breakdown,
 }
 
+/// The contact handler and the progress observer a solve reports to.
+type Seams<'a> = (&'a mut dyn Contact, &'a mut dyn FnMut(&Progress));
+
 impl NewtonKrylov {
     /// A solver with the given parameters.
     pub fn new(params: NewtonKrylovParams) -> Self {
@@ -237,7 +240,7 @@ impl NewtonKrylov {
         reached: f64,
         cause: LoadFailure,
         work: Work,
-        (contact, observer): (&mut dyn Contact, &mut dyn FnMut(&Progress)),
+        (contact, observer): Seams<'_>,
         start: Instant,
     ) -> Result<Solution<NewtonKrylovInfo>, NewtonKrylovError> {
         let not_carried = |fallback| NewtonKrylovError::LoadNotCarried {
