@@ -326,6 +326,12 @@ pub enum LoadFailure {
         /// Iterations spent.
         iterations: usize,
     },
+    /// The whole solve's iteration budget was spent before the full load was carried.
+    #[error("the solve's budget of {iterations} Newton iterations was spent")]
+    Exhausted {
+        /// The budget (Newton iterations over all levels).
+        iterations: usize,
+    },
 }
 
 /// A static solver: DR and Newton are interchangeable behind this trait.

@@ -92,6 +92,9 @@ impl Measured {
                     LoadFailure::Budget { iterations } => {
                         format!("level budget of {iterations} iterations spent")
                     }
+                    LoadFailure::Exhausted { iterations } => {
+                        format!("solve budget of {iterations} iterations spent")
+                    }
                 };
                 let fallback = match fallback {
                     Some(f) => format!("; DR fallback: {f}"),

@@ -38,6 +38,8 @@ pub(crate) enum Level {
     Converged { reached: f64, iterations: usize },
     /// Failed, and why.
     Failed { failure: LoadFailure },
+    /// The solve's iteration budget ran out during the level.
+    Exhausted,
 }
 
 /// Solves one level (see the module documentation).
@@ -67,8 +69,7 @@ pub(crate) fn solve(
     let mut limiting = None;
     loop {
         if work.iterations >= p.max_iterations {
-            let steps = p.max_iterations;
-            return Err(NewtonKrylovError::NoConvergence { err: it.err, steps, tolerance: pb.tol });
+            return Ok(Level::Exhausted);
         }
         work.iterations += 1;
         // 1. The active set: kept from the last level after a predictor, else chosen from the

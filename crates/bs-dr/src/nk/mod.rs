@@ -29,8 +29,9 @@
 //!   levels to a looser tolerance); an easy load is one level, the whole load. A level
 //!   that fails is retried from the last converged state with a quarter of the increment;
 //!   levels after the first start from a secant predictor through the last two converged
-//!   states. After [`ContinuationParams::max_cutbacks`] failures at one level, Dynamic
-//!   Relaxation carries on from the last converged state ([`fallback`]).
+//!   states. After [`ContinuationParams::max_cutbacks`] failures at one level, or when the
+//!   solve's budget of [`NewtonKrylovParams::max_iterations`] runs out, Dynamic Relaxation
+//!   carries on from the last converged state ([`fallback`]).
 //! * Within a level ([`level`], [`loading`]) the load goes in by load steps: the Newton step
 //!   that applies the remaining prescribed displacement through the linearised system (the
 //!   prescribed components move, the others follow the linear response), scaled to the
@@ -153,7 +154,7 @@ pub(crate) struct Work {
 }
 
 /// The contact handler and the progress observer a solve reports to.
-type Seams<'a> = (&'a mut dyn Contact, &'a mut dyn FnMut(&Progress));
+type Seams<'a, 'b> = (&'a mut dyn Contact, &'b mut dyn FnMut(&Progress));
 
 impl NewtonKrylov {
     /// A solver with the given parameters.
@@ -212,6 +213,12 @@ impl NewtonKrylov {
                     cont.accept(reached, iterations);
                     saved.push(&it);
                 }
+                Level::Exhausted => {
+                    saved.restore(&mut it);
+                    let failure = LoadFailure::Exhausted { iterations: self.params.max_iterations };
+                    let seams = (contact, observer);
+                    return self.fall_back(&pb, &saved, cont.done(), failure, work, seams, start);
+                }
                 Level::Failed { failure } => {
                     saved.restore(&mut it);
                     if let Err(e) = cont.cut_back() {
@@ -240,7 +247,7 @@ impl NewtonKrylov {
         reached: f64,
         cause: LoadFailure,
         work: Work,
-        (contact, observer): Seams<'_>,
+        (contact, observer): Seams<'_, '_>,
         start: Instant,
     ) -> Result<Solution<NewtonKrylovInfo>, NewtonKrylovError> {
         let not_carried = |fallback| NewtonKrylovError::LoadNotCarried {

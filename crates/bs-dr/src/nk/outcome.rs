@@ -116,15 +116,6 @@ pub enum NewtonKrylovError {
         /// The bound it exceeded.
         limit: f64,
     },
-    /// The iteration budget over all levels was spent.
-    NoConvergence {
-        /// The last correction.
-        err: f64,
-        /// Iterations taken.
-        steps: usize,
-        /// The tolerance (length units).
-        tolerance: f64,
-    },
     /// The continuation could not carry the load (see [`SolveError::LoadNotCarried`]).
     LoadNotCarried {
         /// Load fraction of the last converged level.
@@ -185,9 +176,6 @@ impl From<NewtonKrylovError> for SolveError {
             E::NotFinite { step } => SolveError::NotFinite { step },
             E::Diverged { step, max_displacement, limit } => {
                 SolveError::Diverged { step, max_displacement, limit }
-            }
-            E::NoConvergence { err, steps, tolerance } => {
-                SolveError::NoConvergence { err, steps, tolerance }
             }
             E::LoadNotCarried { reached, load, cause, fallback } => SolveError::LoadNotCarried {
                 reached,

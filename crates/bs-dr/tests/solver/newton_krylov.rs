@@ -3,8 +3,9 @@
 //! tighter solve, its determinism and its guards.
 
 use bs_dr::{
-    Contact, ContactProjection, ContactReport, DrParams, DynamicRelaxation, Loads, Newton,
-    NewtonKrylov, NewtonKrylovParams, NewtonParams, NoContact, SolveError, Solver, SurfaceFeature,
+    Contact, ContactProjection, ContactReport, ContinuationParams, DrParams, DynamicRelaxation,
+    LoadFailure, Loads, Newton, NewtonKrylov, NewtonKrylovParams, NewtonParams, NoContact,
+    SolveError, Solver, SurfaceFeature,
 };
 use bs_material::Material;
 use bs_mesh::{Point3, Vector3};
@@ -382,14 +383,42 @@ fn guards_are_typed_errors() {
     let err =
         nk(1e-6).solve(&model, &loads, &mut EnforceOnly(vec![1, 2]), &mut |_| {}).unwrap_err();
     assert!(matches!(err, SolveError::Unsupported { .. }), "{err}");
-    // Too few iterations.
+    // Too few iterations, no fallback: the load not carried, with the budget named.
     let few = NewtonKrylov::new(NewtonKrylovParams {
         tolerance: 1e-12,
         max_iterations: 1,
+        continuation: ContinuationParams { fallback: false, ..Default::default() },
         ..Default::default()
     });
     let err = few.solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap_err();
-    assert!(matches!(err, SolveError::NoConvergence { steps: 1, .. }), "{err}");
+    assert!(
+        matches!(
+            err,
+            SolveError::LoadNotCarried {
+                reached: 0.0,
+                cause: LoadFailure::Exhausted { iterations: 1 },
+                fallback: None,
+                ..
+            }
+        ),
+        "{err}"
+    );
+    // With the fallback, Dynamic Relaxation from the last converged state (here the
+    // reference) carries the load: the same equilibrium as an unlimited solve.
+    let few = NewtonKrylov::new(NewtonKrylovParams {
+        tolerance: 1e-6,
+        max_iterations: 1,
+        ..Default::default()
+    });
+    let fell_back = few.solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
+    let full = nk(1e-6).solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
+    let diff = fell_back
+        .displacements
+        .iter()
+        .zip(&full.displacements)
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, f64::max);
+    assert!(diff < 1e-4, "{diff}");
     // Crushing the block beyond its height inverts elements.
     let crush = clamp_and_push(&mesh, 1.0, 1.2);
     let err = nk(1e-6).solve(&model, &crush, &mut NoContact, &mut |_| {}).unwrap_err();
