@@ -292,8 +292,9 @@ fn fallback_text(fallback: &Option<Box<SolveError>>) -> String {
     match fallback.as_deref() {
         None => String::new(),
         Some(e @ SolveError::ElementInverted { element, element_id, .. }) => format!(
-            "; Dynamic Relaxation from that state stopped too ({}): the mesh cannot carry this \
-             load around element {element} (id {element_id}) — refine it there, or reduce the load",
+            "; Dynamic Relaxation from that state stopped too ({}): neither solver took the \
+             load past element {element} (id {element_id}) — refine the mesh there, or reduce \
+             the load",
             e.kind()
         ),
         Some(e) => format!("; Dynamic Relaxation from that state stopped too: {e}"),

@@ -218,6 +218,6 @@ mod tests {
             fallback: Some(dr),
         };
         let text = e.to_string();
-        assert!(text.contains("the mesh cannot carry this load around element 1233"), "{text}");
+        assert!(text.contains("neither solver took the load past element 1233"), "{text}");
     }
 }
