@@ -76,7 +76,6 @@ impl Model {
 #[cfg(test)]
 mod tests {
     use bs_material::Material;
-    use bs_mesh::{Element, Mesh, Point3};
 
     use crate::tests::{distorted_mesh, model};
     use crate::{Model, ModelOptions, Solid};
@@ -86,13 +85,7 @@ mod tests {
     /// assembled here from B and D.
     #[test]
     fn critical_time_step_of_a_tet_matches_dense_eigenvalue() {
-        let nodes = vec![
-            Point3::new(0.0, 0.0, 0.0),
-            Point3::new(1.0, 0.0, 0.0),
-            Point3::new(0.0, 1.0, 0.0),
-            Point3::new(0.0, 0.0, 1.0),
-        ];
-        let mesh = Mesh::new(nodes, vec![Element::tet4([0, 1, 2, 3])]);
+        let mesh = crate::tests::unit_tet();
         let material = Material::neo_hookean(3000.0, 0.3).unwrap();
         let m = Model::uniform(&mesh, Solid { material, density: 1000.0 }, ModelOptions::default())
             .unwrap();

@@ -1,10 +1,21 @@
-//! Test fixtures shared by the unit tests of several layers: a distorted mixed mesh (one
-//! hex, two tets) and its model.
+//! Test fixtures shared by the unit tests of several layers: the unit right tetrahedron, a
+//! distorted mixed mesh (one hex, two tets) and its model.
 
 use bs_material::Material;
 use bs_mesh::{Element, Mesh, Point3};
 
 use crate::{Model, ModelOptions, Solid};
+
+/// The unit right tetrahedron (0,0,0), (1,0,0), (0,1,0), (0,0,1): volume 1/6.
+pub(crate) fn unit_tet() -> Mesh {
+    let nodes = vec![
+        Point3::new(0.0, 0.0, 0.0),
+        Point3::new(1.0, 0.0, 0.0),
+        Point3::new(0.0, 1.0, 0.0),
+        Point3::new(0.0, 0.0, 1.0),
+    ];
+    Mesh::new(nodes, vec![Element::tet4([0, 1, 2, 3])])
+}
 
 /// One distorted hex and two tets sharing nodes with it.
 pub(crate) fn distorted_mesh() -> Mesh {

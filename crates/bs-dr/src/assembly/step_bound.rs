@@ -121,19 +121,13 @@ fn min_pair(a: (f64, u32), b: (f64, u32)) -> (f64, u32) {
 mod tests {
     use crate::{Model, ModelOptions, Solid, StepBound};
     use bs_material::Material;
-    use bs_mesh::{Element, Mesh, Point3, Vector3};
+    use bs_mesh::Vector3;
 
     /// On a model: pushing one tet's apex through its base is bounded where its volume
     /// reaches the fraction, and the limiting element is named.
     #[test]
     fn a_model_step_is_bounded_by_the_element_it_would_crush() {
-        let nodes = vec![
-            Point3::new(0.0, 0.0, 0.0),
-            Point3::new(1.0, 0.0, 0.0),
-            Point3::new(0.0, 1.0, 0.0),
-            Point3::new(0.0, 0.0, 1.0),
-        ];
-        let mesh = Mesh::new(nodes, vec![Element::tet4([0, 1, 2, 3])]);
+        let mesh = crate::tests::unit_tet();
         let solid = Solid { material: Material::neo_hookean(3000.0, 0.4).unwrap(), density: 1.0 };
         let m = Model::uniform(&mesh, solid, ModelOptions::default()).unwrap();
         let u = vec![Vector3::zeros(); 4];
