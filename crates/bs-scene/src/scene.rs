@@ -381,6 +381,11 @@ pub struct Solver {
     /// invert elements).
     #[serde(default = "default_ramp_steps")]
     pub ramp_steps: usize,
+    /// The iteration budget: Newton iterations over all load levels (newton-krylov, default
+    /// 300) or DR steps (dr, default 200 000); not used by `newton`. Extreme loads (the
+    /// 40 mm ellipsoid on a fine mesh) may need more.
+    #[serde(default)]
+    pub max_steps: Option<usize>,
 }
 
 fn default_ramp_steps() -> usize {
@@ -401,6 +406,7 @@ impl Default for Solver {
             kind: default_solver(),
             tolerance: default_tolerance(),
             ramp_steps: default_ramp_steps(),
+            max_steps: None,
         }
     }
 }
@@ -596,6 +602,11 @@ impl Scene {
         if scene.solver.ramp_steps == 0 {
             return Err("[solver] ramp_steps must be at least 1 (default 200)".into());
         }
+        if scene.solver.max_steps == Some(0) {
+            return Err(
+                "[solver] max_steps must be at least 1 (or left out for the default)".into()
+            );
+        }
         Ok(())
     }
 }
@@ -640,7 +651,10 @@ tolerance = 1e-3
             [Some(0.0), Some(0.0), Some(-8.0)]
         );
         assert_eq!(s.contact.unwrap().algorithm, Algorithm::Paper);
-        assert_eq!(s.solver, Solver { kind: SolverKind::Dr, tolerance: 1e-3, ramp_steps: 200 });
+        assert_eq!(
+            s.solver,
+            Solver { kind: SolverKind::Dr, tolerance: 1e-3, ramp_steps: 200, max_steps: None }
+        );
     }
 
     #[test]

@@ -35,7 +35,7 @@ impl SolveSettings {
             kind: p.scene.solver.kind,
             tolerance: p.scene.solver.tolerance,
             step_fraction: DrParams::default().step_fraction,
-            max_steps: None,
+            max_steps: p.scene.solver.max_steps,
             ramp_steps: p.scene.solver.ramp_steps,
             forcing_max: None,
         }

@@ -207,7 +207,9 @@ impl Variant {
         if let Some(f) = self.step_fraction {
             settings.step_fraction = f;
         }
-        settings.max_steps = self.max_steps;
+        if self.max_steps.is_some() {
+            settings.max_steps = self.max_steps;
+        }
         settings.forcing_max = self.forcing_max;
         prepare_solver(&mut c, &settings).map_err(Failure::Solve)?;
         let prepare_seconds = started.elapsed().as_secs_f64();
