@@ -146,7 +146,7 @@ fn mm_in_mesh_units(scene: &Scene) -> f64 {
 
 /// The nodes a `[[boundary]]` selects (sorted indices) and a name for messages: its node
 /// set, or the mesh's boundary nodes inside its sphere or mask.
-fn select_nodes(
+pub(crate) fn select_nodes(
     sp: &Path,
     scene: &Scene,
     mesh: &Mesh,

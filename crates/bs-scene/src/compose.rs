@@ -9,6 +9,7 @@ use bs_dr::{Loads, Model, ModelOptions, Solid};
 use bs_material::{Elastic, Material, OgdenParams};
 
 use crate::SceneError;
+use crate::boundary::Prescribed;
 use crate::prepare::Prepared;
 use crate::scene::{Algorithm, MaterialModel};
 use crate::skull_contact::SkullContact;
@@ -100,21 +101,7 @@ pub fn compose_with(p: &Prepared, opts: &ComposeOptions) -> Result<Composed, Sce
         SceneError::Mesh { file: p.scene.mesh.file.clone(), count: 1, first: e.to_string() }
     })?;
 
-    let mut loads = Loads::new(model.node_count());
-    for (n, comps) in p.prescribed.iter().enumerate() {
-        for (c, v) in comps.iter().enumerate() {
-            let result = match v {
-                Some(v) if *v == 0.0 => loads.fix(n, c),
-                Some(v) => loads.prescribe(n, c, *v),
-                None => Ok(()),
-            };
-            result.map_err(|e| SceneError::Node {
-                scene: p.path.clone(),
-                node_id: p.mesh.node_ids[n],
-                message: e.to_string(),
-            })?;
-        }
-    }
+    let loads = loads_of(p, &p.prescribed)?;
     let load_scale = bs_dr::load_scale(&model, &loads);
 
     let slaves: Vec<usize> = p
@@ -151,6 +138,27 @@ pub fn compose_with(p: &Prepared, opts: &ComposeOptions) -> Result<Composed, Sce
         _ => (None, None, None),
     };
     Ok(Composed { model, loads, slaves, master, exact, contact, load_scale, preparation: None })
+}
+
+/// The solver's loads for the per-node prescribed components `prescribed` of the mesh of
+/// `p` (the scene's own, or those of an update).
+pub fn loads_of(p: &Prepared, prescribed: &Prescribed) -> Result<Loads, SceneError> {
+    let mut loads = Loads::new(p.mesh.nodes.len());
+    for (n, comps) in prescribed.iter().enumerate() {
+        for (c, v) in comps.iter().enumerate() {
+            let result = match v {
+                Some(v) if *v == 0.0 => loads.fix(n, c),
+                Some(v) => loads.prescribe(n, c, *v),
+                None => Ok(()),
+            };
+            result.map_err(|e| SceneError::Node {
+                scene: p.path.clone(),
+                node_id: p.mesh.node_ids[n],
+                message: e.to_string(),
+            })?;
+        }
+    }
+    Ok(loads)
 }
 
 /// The bs-contact algorithm named by a scene.

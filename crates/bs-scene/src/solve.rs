@@ -7,6 +7,8 @@ use bs_dr::{
     Solution, SolveError, Solver,
 };
 
+use bs_mesh::Vector3;
+
 use crate::compose::Composed;
 use crate::prepare::Prepared;
 use crate::scene::SolverKind;
@@ -81,6 +83,19 @@ pub fn solve_composed(
     s: &SolveSettings,
     observer: &mut dyn FnMut(&Progress),
 ) -> Result<(Solution, f64), SolveError> {
+    solve_composed_from(c, s, None, observer)
+}
+
+/// [`solve_composed`] from the displacements `start` (a converged state of other prescribed
+/// values: a warm-started update), or from the reference state with `None`. Newton–Krylov
+/// and Dynamic Relaxation move the prescribed components from their values in `start` to
+/// the loads'; the dense reference Newton solver starts only from the reference state.
+pub fn solve_composed_from(
+    c: &mut Composed,
+    s: &SolveSettings,
+    start: Option<&[Vector3<f64>]>,
+    observer: &mut dyn FnMut(&Progress),
+) -> Result<(Solution, f64), SolveError> {
     let relative = s.tolerance / c.load_scale;
     let mut max_penetration = 0.0f64;
     let mut observe = |pr: &Progress| {
@@ -97,7 +112,7 @@ pub fn solve_composed(
         SolverKind::NewtonKrylov => {
             let prep = c.preparation.as_ref().expect("prepared above");
             newton_krylov_params(s, c.load_scale)
-                .solve_prepared(&c.model, &c.loads, prep, contact, &mut observe)
+                .solve_prepared_from(&c.model, &c.loads, prep, start, contact, &mut observe)
                 .map(Solution::into_common)
                 .map_err(SolveError::from)
         }
@@ -112,8 +127,19 @@ pub fn solve_composed(
                 ramp_steps: s.ramp_steps,
                 ..defaults
             });
-            Solver::solve(&dr, &c.model, &c.loads, contact, &mut observe)
+            match start {
+                Some(u) => dr
+                    .solve_from(&c.model, u, &c.loads, contact, &mut observe)
+                    .map(Solution::into_common)
+                    .map_err(SolveError::from),
+                None => Solver::solve(&dr, &c.model, &c.loads, contact, &mut observe),
+            }
         }
+        SolverKind::Newton if start.is_some() => Err(SolveError::Unsupported {
+            solver: "newton",
+            what: "a warm start from a previous state",
+            fix: "use kind = \"newton-krylov\" or \"dr\" for updates",
+        }),
         SolverKind::Newton => {
             let newton =
                 Newton::new(NewtonParams { tolerance: relative, ..NewtonParams::default() });

@@ -40,12 +40,12 @@ pub(crate) struct Iterate {
 }
 
 impl Iterate {
-    /// Zero displacement, and its forces.
+    /// The start state (zero displacement without one), and its forces.
     pub(crate) fn new(pb: &Problem<'_>, work: &mut Work) -> Result<Self, NewtonKrylovError> {
         let n = pb.model.node_count();
         let zeros = vec![Vector3::<f64>::zeros(); n];
         let mut it = Iterate {
-            u: zeros.clone(),
+            u: pb.start.map_or_else(|| zeros.clone(), <[Vector3<f64>]>::to_vec),
             f: zeros.clone(),
             trial_u: zeros.clone(),
             trial_f: zeros.clone(),

@@ -198,8 +198,25 @@ impl NewtonKrylov {
         contact: &mut dyn Contact,
         observer: &mut dyn FnMut(&Progress),
     ) -> Result<Solution<NewtonKrylovInfo>, NewtonKrylovError> {
+        self.solve_prepared_from(model, loads, prep, None, contact, observer)
+    }
+
+    /// [`solve_prepared`](Self::solve_prepared) from the displacements `start` (a converged
+    /// state of other prescribed values, `None` for the reference state): the continuation
+    /// moves the prescribed components from their values in `start` to those of `loads`, its
+    /// first load step the linearised response to that change (the predictor of a
+    /// warm-started update).
+    pub fn solve_prepared_from(
+        &self,
+        model: &Model,
+        loads: &Loads,
+        prep: &Preparation,
+        start_state: Option<&[Vector3<f64>]>,
+        contact: &mut dyn Contact,
+        observer: &mut dyn FnMut(&Progress),
+    ) -> Result<Solution<NewtonKrylovInfo>, NewtonKrylovError> {
         let start = Instant::now();
-        let pb = Problem::new(&self.params, model, loads, prep, &*contact)?;
+        let pb = Problem::new(&self.params, model, loads, prep, &*contact, start_state)?;
         let mut work = Work::default();
         let mut it = Iterate::new(&pb, &mut work)?;
         let mut saved = Converged::start(&it);

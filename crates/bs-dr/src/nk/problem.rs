@@ -31,6 +31,9 @@ pub(crate) struct Problem<'a> {
     pub limit: f64,
     /// The full load's size.
     pub load: f64,
+    /// The state the solve starts from (a converged state of other prescribed values), or
+    /// `None` for the reference state.
+    pub start: Option<&'a [Vector3<f64>]>,
 }
 
 impl<'a> Problem<'a> {
@@ -41,11 +44,20 @@ impl<'a> Problem<'a> {
         loads: &'a Loads,
         prep: &'a Preparation,
         contact: &dyn Contact,
+        start: Option<&'a [Vector3<f64>]>,
     ) -> Result<Self, NewtonKrylovError> {
         params.validate()?;
         let n = model.node_count();
         if loads.node_count() != n {
             return Err(NewtonKrylovError::LoadMismatch { expected: n, got: loads.node_count() });
+        }
+        if let Some(s) = start
+            && s.len() != n
+        {
+            return Err(NewtonKrylovError::Unsupported {
+                what: "a start state with another number of nodes than the model",
+                fix: "start from displacements of this model's nodes",
+            });
         }
         if !prep.fits(loads) {
             return Err(NewtonKrylovError::Unsupported {
@@ -77,12 +89,18 @@ impl<'a> Problem<'a> {
             tol: params.tolerance * scale,
             limit: params.divergence_factor * scale,
             load: loads.max_prescribed(),
+            start,
         })
     }
 
-    /// The prescribed value of component `k` of node `a` at load fraction `lambda`.
+    /// The prescribed value of component `k` of node `a` at load fraction `lambda`: from
+    /// the start state's value at 0 to the final one at 1 (from zero without a start state).
     fn prescribed(&self, lambda: f64, a: usize, k: usize) -> f64 {
-        lambda * self.loads.value(a, k)
+        let end = self.loads.value(a, k);
+        match self.start {
+            Some(s) => s[a][k] + lambda * (end - s[a][k]),
+            None => lambda * end,
+        }
     }
 
     /// Sets the prescribed components of `u` to their values at `lambda`.

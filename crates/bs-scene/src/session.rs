@@ -1,0 +1,296 @@
+//! A live session: the pre-operative work done once (composition, contact lists, the
+//! solver's preparation), then intra-operative updates, each new measurement of a
+//! prescribed boundary solved warm from the last converged state and verified exactly as a
+//! cold run is. A failed update (a set the scene does not prescribe, a load the solver
+//! cannot carry, a result that fails verification) leaves the session at its last good
+//! state. Nothing here prints.
+
+use std::path::PathBuf;
+
+use bs_dr::Progress;
+use bs_mesh::Vector3;
+
+use crate::SceneError;
+use crate::boundary::{Prescribed, resolve_boundaries, select_nodes};
+use crate::compose::loads_of;
+use crate::prepare::Prepared;
+use crate::run::{Run, Solved};
+use crate::scene::{Boundary, Displacement, Scene};
+use crate::solve::solve_composed_from;
+use crate::verify::verify;
+
+/// A new measurement of one prescribed boundary, named by its node set.
+#[derive(Debug, Clone, PartialEq)]
+pub enum BoundaryLoad {
+    /// The same displacement for every node of the set (mesh frame and units); only the
+    /// components the boundary prescribes may be non-zero.
+    Uniform(Vector3<f64>),
+    /// One displacement per node, in the order of [`Session::set_nodes`].
+    PerNode(Vec<Vector3<f64>>),
+    /// An intra-operative surface (.stl, .obj, .off): each node moves to its closest point.
+    Surface(PathBuf),
+    /// A CSV of landmark pairs `x,y,z,x2,y2,z2`: the nodes move by their thin-plate spline.
+    Landmarks(PathBuf),
+}
+
+/// The pre-operative state and the last good intra-operative one.
+#[derive(Debug)]
+pub struct Session {
+    run: Run,
+    /// The scene's own prescribed components (what [`Session::reset`] returns to).
+    scene_prescribed: Prescribed,
+    /// Displacements of the last converged update (zero before the first, after a reset).
+    state: Vec<Vector3<f64>>,
+    warm: bool,
+}
+
+impl Session {
+    /// Does the pre-operative work for `prepared` (see [`Run::prepare`]).
+    pub fn new(prepared: Prepared) -> Result<Session, SceneError> {
+        let run = Run::prepare(prepared)?;
+        let n = run.prepared.mesh.nodes.len();
+        let scene_prescribed = run.prepared.prescribed.clone();
+        Ok(Session { run, scene_prescribed, state: vec![Vector3::zeros(); n], warm: false })
+    }
+
+    /// The prepared scene, its composition and its solver settings.
+    pub fn run(&self) -> &Run {
+        &self.run
+    }
+
+    /// Displacements of the last good state (zero at the reference state).
+    pub fn displacements(&self) -> &[Vector3<f64>] {
+        &self.state
+    }
+
+    /// The nodes (indices) of the node set `name`, in the order [`BoundaryLoad::PerNode`]
+    /// takes their displacements.
+    pub fn set_nodes(&self, name: &str) -> Result<Vec<usize>, SceneError> {
+        let (i, b) = self.boundary(name)?;
+        let p = &self.run.prepared;
+        select_nodes(&p.path, &p.scene, &p.mesh, i, b).map(|(_, nodes)| nodes)
+    }
+
+    /// Back to the reference state and the scene's own loads.
+    pub fn reset(&mut self) {
+        self.state.iter_mut().for_each(|u| *u = Vector3::zeros());
+        self.warm = false;
+        let p = self.scene_prescribed.clone();
+        // The scene's own loads were accepted when the session was made.
+        let _ = self.set_loads(p);
+    }
+
+    /// Solves the loads now set (the scene's own at first) from the last good state.
+    pub fn solve(&mut self, observer: &mut dyn FnMut(&Progress)) -> Result<Solved, SceneError> {
+        let start = std::time::Instant::now();
+        let from = if self.warm { Some(self.state.as_slice()) } else { None };
+        let run = &mut self.run;
+        let (solution, max_penetration_before) =
+            solve_composed_from(&mut run.composed, &run.settings, from, observer)?;
+        let tolerance = run.settings.tolerance;
+        let verification =
+            verify(&run.prepared, &run.composed, &solution.displacements, tolerance)?;
+        self.state.copy_from_slice(&solution.displacements);
+        self.warm = true;
+        Ok(Solved {
+            solution,
+            max_penetration_before,
+            verification,
+            solve_seconds: start.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// Sets the new measurements `loads` (other prescribed boundaries keep their last
+    /// values) and solves warm from the last good state. On any error the session keeps
+    /// its last good state and loads.
+    pub fn update(
+        &mut self,
+        loads: &[(String, BoundaryLoad)],
+        observer: &mut dyn FnMut(&Progress),
+    ) -> Result<Solved, SceneError> {
+        let prescribed = self.resolve(loads)?;
+        let previous = self.set_loads(prescribed)?;
+        match self.solve(observer) {
+            Ok(solved) => Ok(solved),
+            Err(e) => {
+                self.set_loads(previous).expect("the previous loads were accepted before");
+                Err(e)
+            }
+        }
+    }
+
+    /// The boundary whose node set is `name` and that prescribes displacements.
+    fn boundary(&self, name: &str) -> Result<(usize, &Boundary), SceneError> {
+        let p = &self.run.prepared;
+        let moves = |b: &Boundary| {
+            b.displacement.is_some()
+                || b.displacement_file.is_some()
+                || b.surface.is_some()
+                || b.landmarks.is_some()
+        };
+        p.scene
+            .boundaries
+            .iter()
+            .enumerate()
+            .find(|(_, b)| b.nset.as_deref() == Some(name) && moves(b))
+            .ok_or_else(|| {
+                let known: Vec<&str> = p
+                    .scene
+                    .boundaries
+                    .iter()
+                    .filter(|b| moves(b))
+                    .filter_map(|b| b.nset.as_deref())
+                    .collect();
+                SceneError::Set {
+                    scene: p.path.clone(),
+                    key: "update".into(),
+                    set: name.into(),
+                    message: format!(
+                        "no [[boundary]] with this nset prescribes displacements; the scene's \
+                         prescribed node sets are: {}",
+                        if known.is_empty() { "none".into() } else { known.join(", ") }
+                    ),
+                }
+            })
+    }
+
+    /// The per-node prescribed components with `loads` applied to the current ones.
+    fn resolve(&self, loads: &[(String, BoundaryLoad)]) -> Result<Prescribed, SceneError> {
+        let p = &self.run.prepared;
+        let mut scene: Scene = p.scene.clone();
+        let mut per_node = Vec::new();
+        for (name, load) in loads {
+            let (i, original) = self.boundary(name)?;
+            let b = &mut scene.boundaries[i];
+            let cleared = Boundary {
+                displacement: None,
+                displacement_file: None,
+                surface: None,
+                landmarks: None,
+                ..original.clone()
+            };
+            match load {
+                BoundaryLoad::Uniform(v) => {
+                    *b = Boundary { displacement: Some(uniform(p, name, original, v)?), ..cleared };
+                }
+                BoundaryLoad::Surface(f) => *b = Boundary { surface: Some(f.clone()), ..cleared },
+                BoundaryLoad::Landmarks(f) => {
+                    *b = Boundary { landmarks: Some(f.clone()), ..cleared }
+                }
+                BoundaryLoad::PerNode(values) => per_node.push((name, i, values)),
+            }
+        }
+        // Boundaries not updated keep the values of the last update.
+        let mut prescribed = resolve_boundaries(&p.path, &scene, &p.mesh)?;
+        let updated: Vec<usize> =
+            loads.iter().filter_map(|(name, _)| self.boundary(name).ok().map(|(i, _)| i)).collect();
+        for (i, b) in p.scene.boundaries.iter().enumerate() {
+            if updated.contains(&i) || b.nset.is_none() {
+                continue;
+            }
+            let (_, nodes) = select_nodes(&p.path, &p.scene, &p.mesh, i, b)?;
+            for n in nodes {
+                prescribed[n] = p.prescribed[n];
+            }
+        }
+        for (name, i, values) in per_node {
+            let (_, nodes) = select_nodes(&p.path, &p.scene, &p.mesh, i, &p.scene.boundaries[i])?;
+            per_node_values(p, name, &nodes, values, &mut prescribed)?;
+        }
+        Ok(prescribed)
+    }
+
+    /// Makes `prescribed` the loads of the next solve; returns the loads it replaces.
+    /// Refused when it prescribes other components than the scene (the solver's
+    /// preparation is for the scene's).
+    fn set_loads(&mut self, prescribed: Prescribed) -> Result<Prescribed, SceneError> {
+        let p = &self.run.prepared;
+        if let Some(n) = (0..prescribed.len()).find(|&n| {
+            (0..3).any(|c| prescribed[n][c].is_some() != self.scene_prescribed[n][c].is_some())
+        }) {
+            return Err(SceneError::Node {
+                scene: p.path.clone(),
+                node_id: p.mesh.node_ids[n],
+                message: "the update prescribes other components of this node than the scene \
+                          does; an update may change the values of the prescribed boundaries, \
+                          not which nodes and components they hold"
+                    .into(),
+            });
+        }
+        let loads = loads_of(p, &prescribed)?;
+        let c = &mut self.run.composed;
+        c.load_scale = bs_dr::load_scale(&c.model, &loads);
+        c.loads = loads;
+        Ok(std::mem::replace(&mut self.run.prepared.prescribed, prescribed))
+    }
+}
+
+/// The uniform displacement `v` for the boundary `b` named `name`: its prescribed
+/// components (all three for a measured surface or landmarks).
+fn uniform(
+    p: &Prepared,
+    name: &str,
+    b: &Boundary,
+    v: &Vector3<f64>,
+) -> Result<Displacement, SceneError> {
+    let held = match &b.displacement {
+        Some(d) => d.components().map(|c| c.is_some()),
+        None => [true; 3],
+    };
+    let value = |c: usize| -> Result<Option<f64>, SceneError> {
+        let x = v[c];
+        if !x.is_finite() || (!held[c] && x != 0.0) {
+            return Err(SceneError::Set {
+                scene: p.path.clone(),
+                key: "update".into(),
+                set: name.into(),
+                message: format!(
+                    "component {} = {x}: {}",
+                    ["x", "y", "z"][c],
+                    if x.is_finite() {
+                        "the boundary leaves this component free; give 0 for it"
+                    } else {
+                        "a displacement must be a finite number"
+                    }
+                ),
+            });
+        }
+        Ok(held[c].then_some(x))
+    };
+    Ok(Displacement { x: value(0)?, y: value(1)?, z: value(2)? })
+}
+
+/// Writes one displacement per node of `nodes` into `prescribed` (the components the
+/// boundary prescribes).
+fn per_node_values(
+    p: &Prepared,
+    name: &str,
+    nodes: &[usize],
+    values: &[Vector3<f64>],
+    prescribed: &mut Prescribed,
+) -> Result<(), SceneError> {
+    let err = |message: String| SceneError::Set {
+        scene: p.path.clone(),
+        key: "update".into(),
+        set: name.into(),
+        message,
+    };
+    if values.len() != nodes.len() {
+        return Err(err(format!(
+            "{} displacements for {} nodes; give one (dx, dy, dz) per node of the set",
+            values.len(),
+            nodes.len()
+        )));
+    }
+    for (k, (&n, v)) in nodes.iter().zip(values).enumerate() {
+        if !v.iter().all(|x| x.is_finite()) {
+            return Err(err(format!("row {k} (node {}) is not finite", p.mesh.node_ids[n])));
+        }
+        for c in 0..3 {
+            if prescribed[n][c].is_some() {
+                prescribed[n][c] = Some(v[c]);
+            }
+        }
+    }
+    Ok(())
+}

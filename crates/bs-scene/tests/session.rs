@@ -1,0 +1,145 @@
+//! A live session (`bs_scene::Session`): updates solved warm from the last converged state
+//! equal cold runs of the same loads, in any order and back to zero; a failed update leaves
+//! the session at its last good state.
+//!
+//! The case: a 40 mm Kuhn box (6³ cells), bottom face fixed, top face (node set TOP)
+//! prescribed. Both solves stop when the last Newton correction is below the scene's
+//! tolerance, 1e-6 mm, and converge superlinearly, so each is within a fraction of that of
+//! the exact discrete solution: two of them agree to 1e-5 mm (ten tolerances) or better.
+
+use std::path::{Path, PathBuf};
+
+use bs_mesh::Vector3;
+use bs_scene::{BoundaryLoad, Prepared, Run, SceneError, Session};
+
+const TOL: f64 = 1e-5;
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("bs-session-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// The box with sets TOP and BOTTOM, and a scene pushing TOP by `top` (x, y, z), written to
+/// `dir`.
+fn scene(dir: &Path, top: [f64; 3], solver: &str) -> PathBuf {
+    let mut mesh = bs_mesh::structured::box_mesh(6, 40.0, true);
+    let on = |z: f64| (0..mesh.nodes.len()).filter(|&n| mesh.nodes[n].z == z).collect::<Vec<_>>();
+    let (top_nodes, bottom) = (on(40.0), on(0.0));
+    mesh.node_sets.insert("TOP".into(), top_nodes);
+    mesh.node_sets.insert("BOTTOM".into(), bottom);
+    bs_mesh::io::write_mesh(&dir.join("box.inp"), &mesh, &Default::default()).unwrap();
+    let text = format!(
+        "units = \"mm\"\n[mesh]\nfile = \"box.inp\"\n[[region]]\nelset = \"*\"\n\
+         material = {{ model = \"neo-hookean\", youngs_modulus = 3000.0, poisson_ratio = 0.45 }}\n\
+         [[boundary]]\nnset = \"BOTTOM\"\nfix = [\"x\", \"y\", \"z\"]\n\
+         [[boundary]]\nnset = \"TOP\"\ndisplacement = {{ x = {}, y = {}, z = {} }}\n\
+         [solver]\nkind = \"{solver}\"\ntolerance = 1e-6\n",
+        top[0], top[1], top[2]
+    );
+    let path = dir.join(format!("scene-{}-{}-{}.toml", top[0], top[1], top[2]));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// A cold run of the scene with TOP at `top`.
+fn cold(dir: &Path, top: [f64; 3]) -> Vec<Vector3<f64>> {
+    let mut run = Run::prepare(Prepared::load(&scene(dir, top, "newton-krylov")).unwrap()).unwrap();
+    run.solve(&mut |_| {}).unwrap().solution.displacements
+}
+
+fn max_diff(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y).amax()).fold(0.0, f64::max)
+}
+
+fn top(v: [f64; 3]) -> Vec<(String, BoundaryLoad)> {
+    vec![("TOP".to_string(), BoundaryLoad::Uniform(Vector3::from(v)))]
+}
+
+#[test]
+fn updates_in_any_order_equal_cold_runs_and_return_to_zero() {
+    let d = tmp("order");
+    let mut s =
+        Session::new(Prepared::load(&scene(&d, [0.0, 0.0, -2.0], "newton-krylov")).unwrap())
+            .unwrap();
+    // The scene's own load first (cold: from the reference state).
+    let first = s.solve(&mut |_| {}).unwrap();
+    assert!(max_diff(&first.solution.displacements, &cold(&d, [0.0, 0.0, -2.0])) < TOL);
+    // Then measurements in a jumbled order, each warm from the last: larger, sheared,
+    // smaller, back.
+    for v in [[0.0, 0.0, -6.0], [1.5, -1.0, -4.0], [0.0, 0.0, -1.0], [0.0, 0.0, -6.0]] {
+        let warm = s.update(&top(v), &mut |_| {}).unwrap();
+        let diff = max_diff(&warm.solution.displacements, &cold(&d, v));
+        assert!(diff < TOL, "TOP at {v:?}: warm vs cold {diff:e} mm");
+        assert_eq!(s.displacements(), warm.solution.displacements.as_slice());
+    }
+    // Zero load: the reference state exactly (closed form), within the tolerance.
+    let zero = s.update(&top([0.0; 3]), &mut |_| {}).unwrap();
+    let largest = zero.solution.displacements.iter().map(|u| u.amax()).fold(0.0, f64::max);
+    assert!(largest < TOL, "back to zero: {largest:e} mm");
+}
+
+#[test]
+fn a_per_node_update_in_set_order_equals_the_uniform_one() {
+    let d = tmp("per-node");
+    let mut s =
+        Session::new(Prepared::load(&scene(&d, [0.0, 0.0, -2.0], "newton-krylov")).unwrap())
+            .unwrap();
+    let nodes = s.set_nodes("TOP").unwrap();
+    assert_eq!(nodes.len(), 49, "the 7×7 top nodes");
+    let v = Vector3::new(0.0, 0.5, -3.0);
+    let per_node = vec![("TOP".to_string(), BoundaryLoad::PerNode(vec![v; nodes.len()]))];
+    let a = s.update(&per_node, &mut |_| {}).unwrap().solution.displacements;
+    for &n in &nodes {
+        assert_eq!(a[n], v, "node {n} carries its prescribed value exactly");
+    }
+    s.reset();
+    assert!(s.displacements().iter().all(|u| *u == Vector3::zeros()));
+    let b = s.update(&top([0.0, 0.5, -3.0]), &mut |_| {}).unwrap().solution.displacements;
+    assert!(max_diff(&a, &b) < TOL);
+}
+
+#[test]
+fn a_failed_update_leaves_the_last_good_state() {
+    let d = tmp("failed");
+    let mut s =
+        Session::new(Prepared::load(&scene(&d, [0.0, 0.0, -2.0], "newton-krylov")).unwrap())
+            .unwrap();
+    let good = s.solve(&mut |_| {}).unwrap().solution.displacements;
+    let message = |r: Result<bs_scene::Solved, SceneError>| r.unwrap_err().to_string();
+    // A set the scene does not prescribe, a fixed one, a wrong row count, a NaN.
+    let m =
+        message(s.update(&[("SIDE".into(), BoundaryLoad::Uniform(Vector3::zeros()))], &mut |_| {}));
+    assert!(m.contains("SIDE") && m.contains("prescribed node sets are: TOP"), "{m}");
+    let m = message(
+        s.update(&[("BOTTOM".into(), BoundaryLoad::Uniform(Vector3::zeros()))], &mut |_| {}),
+    );
+    assert!(m.contains("BOTTOM") && m.contains("TOP"), "{m}");
+    let m = message(
+        s.update(&[("TOP".into(), BoundaryLoad::PerNode(vec![Vector3::zeros(); 3]))], &mut |_| {}),
+    );
+    assert!(m.contains("3 displacements for 49 nodes"), "{m}");
+    let m = message(s.update(&top([f64::NAN, 0.0, -1.0]), &mut |_| {}));
+    assert!(m.contains("finite"), "{m}");
+    // A load no solver carries: the top pushed 45 mm through a 40 mm box.
+    let m = message(s.update(&top([0.0, 0.0, -45.0]), &mut |_| {}));
+    assert!(m.contains("neither solver took the load"), "{m}");
+    // The session is where it was, and the next update starts from there.
+    assert_eq!(s.displacements(), good.as_slice());
+    let next = s.update(&top([0.0, 0.0, -3.0]), &mut |_| {}).unwrap();
+    assert!(max_diff(&next.solution.displacements, &cold(&d, [0.0, 0.0, -3.0])) < TOL);
+}
+
+#[test]
+fn dynamic_relaxation_updates_warm_too() {
+    let d = tmp("dr");
+    let mut s = Session::new(Prepared::load(&scene(&d, [0.0, 0.0, -2.0], "dr")).unwrap()).unwrap();
+    s.solve(&mut |_| {}).unwrap();
+    let warm = s.update(&top([0.0, 0.0, -3.0]), &mut |_| {}).unwrap();
+    // DR stops on its own error estimate (1e-6 mm relative to the load, as the scene asks):
+    // against Newton–Krylov's cold answer, ten times the tolerance as above, times the
+    // load, is generous for both.
+    let diff = max_diff(&warm.solution.displacements, &cold(&d, [0.0, 0.0, -3.0]));
+    assert!(diff < 1e-3, "DR warm vs NK cold: {diff:e} mm");
+}
