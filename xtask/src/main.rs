@@ -10,6 +10,8 @@
 //!   `docs/contact-bench.md`.
 //! * `bench warp`: the registration outputs (inverse map, warp, field) on the MNI152 T1
 //!   template with the demo result, against reading the image and a naive per-voxel loop.
+//! * `bench update`: a live session's warm-started updates of the MNI152 craniotomy at
+//!   1..8 mm against cold solves of the same loads, and the warped T1 after each.
 //! * `bench e2e`: every contact fixture solved by DR and by Newton–Krylov in child
 //!   processes: preparation and solve times, iterations, accuracy against CalculiX, peak
 //!   memory, speed-up (table in `docs/benchmarks.md`).
@@ -36,6 +38,7 @@ mod bench_contact;
 mod bench_e2e;
 mod bench_mesh;
 mod bench_solver;
+mod bench_update;
 mod bench_warp;
 mod chart;
 mod deps;
@@ -68,6 +71,9 @@ Commands:
   bench e2e       [--case NAME] [--repeat N] every contact fixture solved by DR (baseline) and
                   Newton-Krylov (default): preparation, solve, iterations, accuracy against
                   CalculiX, peak memory, speed-up (writes docs/benchmarks.md)
+  bench update    [--scene S] the MNI152 craniotomy measured at 1..8 mm: eight updates of a live session,
+                  each warm from the last, against cold solves of the same loads; the warped
+                  T1 after each; peak memory (release)
   bench mesh      meshing a labelmap at 4 mm (MNI152 mask and an MNI-sized ellipsoid), 1 and 2
                   threads (release)
   ghost           the warped MNI152 T1 where the demo's brain moved away (the ghost of the old
@@ -151,9 +157,10 @@ fn main() -> ExitCode {
             Some("e2e") => report(bench_e2e::main(&args[2..]), "bench e2e"),
             Some("mesh") => report(bench_mesh::main(), "bench mesh"),
             Some("warp") => report(bench_warp::main(), "bench warp"),
+            Some("update") => report(bench_update::main(&args[2..]), "bench update"),
             _ => {
                 eprintln!(
-                    "bench what? `cargo xtask bench solver`, `bench contact`, `bench e2e` or `bench mesh`"
+                    "bench what? `cargo xtask bench solver`, `bench contact`, `bench e2e`, `bench mesh`, `bench warp` or `bench update`"
                 );
                 ExitCode::from(2)
             }

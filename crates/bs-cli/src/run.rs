@@ -158,7 +158,7 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
     let solved = solved?;
     let ctx = RunContext { total_seconds: started.elapsed().as_secs_f64(), threads };
     let mut report = report(&run, &solved, ctx);
-    let written = write_outputs(&opts.out, &run, &solved, &report)?;
+    let written = write_outputs(&opts.out, &run.prepared, &solved, &report)?;
     report.total_seconds = started.elapsed().as_secs_f64();
     if !opts.quiet {
         let u_unit = run.prepared.scene.units.symbol();

@@ -13,7 +13,7 @@ use std::time::Instant;
 
 use bs_contact::{Handler, MasterSurface, PaperParams};
 use bs_mesh::{Element, Mesh, Point3, TriSurface};
-use bs_scene::output::{RunContext, report, write_outputs};
+use bs_scene::output::{RunContext, RunReport, report, write_outputs};
 use bs_scene::scene::{Algorithm, MaterialModel};
 use bs_scene::sweep::{self, RowOutcome, SlurmOptions, SweepError};
 use bs_scene::{Prepared, Run, SceneError, Solved};
@@ -23,6 +23,8 @@ use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyOSError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
+
+mod session;
 
 create_exception!(
     brainshift,
@@ -418,7 +420,7 @@ impl Scene {
             return Err(e);
         }
         let ctx = RunContext { total_seconds: started.elapsed().as_secs_f64(), threads };
-        Ok(RunResult::new(run, solved, ctx))
+        Ok(RunResult::new(&run, solved, ctx))
     }
 
     fn __repr__(&self) -> String {
@@ -434,21 +436,27 @@ impl Scene {
 /// A verified run: displacements, node ids, the report, and `write(dir)`.
 #[pyclass(module = "brainshift", name = "Result", frozen)]
 struct RunResult {
-    inner: Mutex<(Run, Solved)>,
-    ctx: RunContext,
+    inner: Mutex<(Prepared, Solved)>,
+    report: RunReport,
     report_json: String,
     displacements: Vec<f64>,
     node_ids: Vec<u64>,
 }
 
 impl RunResult {
-    fn new(run: Run, solved: Solved, ctx: RunContext) -> RunResult {
-        let r = report(&run, &solved, ctx);
+    fn new(run: &Run, solved: Solved, ctx: RunContext) -> RunResult {
+        let r = report(run, &solved, ctx);
         let report_json = serde_json::to_string(&r).expect("a report serialises");
         let displacements =
             solved.solution.displacements.iter().flat_map(|d| [d.x, d.y, d.z]).collect();
         let node_ids = run.prepared.mesh.node_ids.clone();
-        RunResult { inner: Mutex::new((run, solved)), ctx, report_json, displacements, node_ids }
+        RunResult {
+            inner: Mutex::new((run.prepared.clone(), solved)),
+            report: r,
+            report_json,
+            displacements,
+            node_ids,
+        }
     }
 }
 
@@ -481,9 +489,8 @@ impl RunResult {
         let written = py
             .detach(|| {
                 let guard = self.inner.lock().unwrap_or_else(|e| e.into_inner());
-                let (run, solved) = &*guard;
-                let r = report(run, solved, self.ctx);
-                write_outputs(&dir, run, solved, &r)
+                let (prepared, solved) = &*guard;
+                write_outputs(&dir, prepared, solved, &self.report)
             })
             .map_err(|e| scene_err(py, e))?;
         let d = PyDict::new(py);
@@ -713,6 +720,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("BrainshiftError", m.py().get_type::<BrainshiftError>())?;
     m.add_class::<Scene>()?;
     m.add_class::<RunResult>()?;
+    m.add_class::<session::Session>()?;
     m.add_function(wrap_pyfunction!(read_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(gap, m)?)?;
     m.add_function(wrap_pyfunction!(sweep_plan, m)?)?;

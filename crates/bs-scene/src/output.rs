@@ -12,6 +12,7 @@ use bs_mesh::io::{Field, Fields, write_atomic};
 use serde::Serialize;
 
 use crate::SceneError;
+use crate::prepare::Prepared;
 use crate::run::{Run, Solved};
 
 /// The machine-readable summary written to report.json.
@@ -21,14 +22,17 @@ pub struct RunReport {
     pub converged: bool,
     /// DR steps or Newton iterations.
     pub steps: usize,
-    /// Wall time of the solver alone.
-    pub wall_seconds: f64,
+    /// Wall time of the solver alone (part of `solve_seconds`).
+    pub solver_seconds: f64,
+    /// Wall time of the independent verification of the result (contact state, J,
+    /// equilibrium): `solve_seconds` − `solver_seconds`.
+    pub verify_seconds: f64,
     /// Wall time of everything that depends only on mesh, materials and skull (the model's
     /// precomputation, the contact search structures, the solver's preconditioner): what can
     /// be computed before surgery.
     pub prepare_seconds: f64,
-    /// Wall time from known displacements to a converged, checked result (the solver and
-    /// the final contact check).
+    /// Wall time from known displacements to a converged, verified result (the solver and
+    /// the verification).
     pub solve_seconds: f64,
     /// Evaluations of the internal forces.
     pub force_evaluations: usize,
@@ -41,14 +45,15 @@ pub struct RunReport {
     pub cutbacks: usize,
     /// Dynamic Relaxation steps of newton-krylov's fallback (0: not needed).
     pub fallback_steps: usize,
-    /// Part of `wall_seconds` spent in contact enforcement and queries.
+    /// Part of `solver_seconds` spent in contact enforcement and queries.
     pub contact_seconds: f64,
-    /// Part of `wall_seconds` spent evaluating internal forces (newton-krylov; 0 for the
+    /// Part of `solver_seconds` spent evaluating internal forces (newton-krylov; 0 for the
     /// others, which do not time it).
     pub force_seconds: f64,
-    /// Part of `wall_seconds` spent in the preconditioner (newton-krylov).
+    /// Part of `solver_seconds` spent in the preconditioner (newton-krylov).
     pub preconditioner_seconds: f64,
-    /// Wall time including reading, setup and writing.
+    /// Wall time of the whole run in this process: reading the scene, preparing, solving,
+    /// verifying and writing.
     pub total_seconds: f64,
     /// Final error estimate (mesh length units).
     pub error_estimate: f64,
@@ -127,7 +132,8 @@ pub fn report(run: &Run, s: &Solved, ctx: RunContext) -> RunReport {
     RunReport {
         converged: true,
         steps: r.steps,
-        wall_seconds: r.elapsed.as_secs_f64(),
+        solver_seconds: r.elapsed.as_secs_f64(),
+        verify_seconds: (s.solve_seconds - r.elapsed.as_secs_f64()).max(0.0),
         prepare_seconds: run.prepare_seconds,
         solve_seconds: s.solve_seconds,
         force_evaluations: r.force_evaluations,
@@ -164,11 +170,10 @@ pub fn report(run: &Run, s: &Solved, ctx: RunContext) -> RunReport {
 /// Writes the three result files of a verified run into `out` (created if missing).
 pub fn write_outputs(
     out: &Path,
-    run: &Run,
+    p: &Prepared,
     s: &Solved,
     report: &RunReport,
 ) -> Result<Written, SceneError> {
-    let p = &run.prepared;
     let u = &s.solution.displacements;
     let io = |path: &Path| {
         let path = path.to_path_buf();

@@ -154,14 +154,14 @@ impl Session {
             })
     }
 
-    /// The per-node prescribed components with `loads` applied to the current ones.
+    /// The per-node prescribed components with `loads` applied to the current ones: each
+    /// updated boundary resolved on its own (its nodes and components take the new
+    /// values), every other component keeps its last value.
     fn resolve(&self, loads: &[(String, BoundaryLoad)]) -> Result<Prescribed, SceneError> {
         let p = &self.run.prepared;
-        let mut scene: Scene = p.scene.clone();
-        let mut per_node = Vec::new();
+        let mut prescribed = p.prescribed.clone();
         for (name, load) in loads {
-            let (i, original) = self.boundary(name)?;
-            let b = &mut scene.boundaries[i];
+            let (_, original) = self.boundary(name)?;
             let cleared = Boundary {
                 displacement: None,
                 displacement_file: None,
@@ -169,33 +169,27 @@ impl Session {
                 landmarks: None,
                 ..original.clone()
             };
-            match load {
+            let b = match load {
                 BoundaryLoad::Uniform(v) => {
-                    *b = Boundary { displacement: Some(uniform(p, name, original, v)?), ..cleared };
+                    Boundary { displacement: Some(uniform(p, name, original, v)?), ..cleared }
                 }
-                BoundaryLoad::Surface(f) => *b = Boundary { surface: Some(f.clone()), ..cleared },
-                BoundaryLoad::Landmarks(f) => {
-                    *b = Boundary { landmarks: Some(f.clone()), ..cleared }
+                BoundaryLoad::Surface(f) => Boundary { surface: Some(f.clone()), ..cleared },
+                BoundaryLoad::Landmarks(f) => Boundary { landmarks: Some(f.clone()), ..cleared },
+                BoundaryLoad::PerNode(_) => original.clone(),
+            };
+            let single = Scene { boundaries: vec![b], ..p.scene.clone() };
+            let mut values = resolve_boundaries(&p.path, &single, &p.mesh)?;
+            if let BoundaryLoad::PerNode(v) = load {
+                let (_, nodes) = select_nodes(&p.path, &single, &p.mesh, 0, &single.boundaries[0])?;
+                per_node_values(p, name, &nodes, v, &mut values)?;
+            }
+            for (now, new) in prescribed.iter_mut().zip(&values) {
+                for c in 0..3 {
+                    if new[c].is_some() {
+                        now[c] = new[c];
+                    }
                 }
-                BoundaryLoad::PerNode(values) => per_node.push((name, i, values)),
             }
-        }
-        // Boundaries not updated keep the values of the last update.
-        let mut prescribed = resolve_boundaries(&p.path, &scene, &p.mesh)?;
-        let updated: Vec<usize> =
-            loads.iter().filter_map(|(name, _)| self.boundary(name).ok().map(|(i, _)| i)).collect();
-        for (i, b) in p.scene.boundaries.iter().enumerate() {
-            if updated.contains(&i) || b.nset.is_none() {
-                continue;
-            }
-            let (_, nodes) = select_nodes(&p.path, &p.scene, &p.mesh, i, b)?;
-            for n in nodes {
-                prescribed[n] = p.prescribed[n];
-            }
-        }
-        for (name, i, values) in per_node {
-            let (_, nodes) = select_nodes(&p.path, &p.scene, &p.mesh, i, &p.scene.boundaries[i])?;
-            per_node_values(p, name, &nodes, values, &mut prescribed)?;
         }
         Ok(prescribed)
     }

@@ -11,6 +11,13 @@ displacements and the same error messages.
 >>> result.report["max_displacement"]     # the keys of report.json
 >>> result.write("out")                   # result.vtu, displacements.csv, report.json
 
+Intra-operative updates: a live session prepares the scene once and solves each new
+measurement warm from the last one (same Result type):
+
+>>> session = brainshift.Session(brainshift.Scene.from_toml("fixtures/mni152/scene.toml"))
+>>> r = session.update(displacements={"CRANIOTOMY": [0.0, 0.0, -4.0]})
+>>> session.reset()                       # back to the reference state
+
 Sweeps: :mod:`brainshift.sweep` (plan, run on Dask, collect, Slurm script).
 """
 
@@ -18,6 +25,7 @@ from ._native import (
     BrainshiftError,
     Result,
     Scene,
+    Session,
     __version__,
     gap,
     read_mesh,
@@ -28,6 +36,7 @@ __all__ = [
     "BrainshiftError",
     "Result",
     "Scene",
+    "Session",
     "__version__",
     "gap",
     "read_mesh",

@@ -113,7 +113,7 @@ fn solve_into(
     let solved = run.solve(observer)?;
     let ctx = RunContext { total_seconds: started.elapsed().as_secs_f64(), threads };
     let report = report(&run, &solved, ctx);
-    write_outputs(out, &run, &solved, &report)?;
+    write_outputs(out, &run.prepared, &solved, &report)?;
     Ok(())
 }
 

@@ -1,0 +1,217 @@
+//! `brainshift.Session`: a live session of a scene (bs-scene's `Session`): the
+//! pre-operative work done once, then `update(...)` solves each new measurement warm from
+//! the last converged state and returns the same `Result` as `Scene.run`; `reset()` goes
+//! back to the reference state. The GIL is released while solving.
+
+use std::path::PathBuf;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
+
+use bs_mesh::{Point3, TriSurface, Vector3};
+use bs_scene::output::RunContext;
+use bs_scene::{BoundaryLoad, SceneError};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple};
+
+use crate::{RunResult, Scene, f64_rows, index_rows, scene_err, with_threads};
+
+/// A live session of a scene: `update` takes new measurements of the scene's prescribed
+/// boundaries (keyed by node set) and solves from the last good state.
+#[pyclass(module = "brainshift", frozen)]
+pub(crate) struct Session {
+    inner: Mutex<bs_scene::Session>,
+    threads: Option<usize>,
+    /// Temporary files of array-given surfaces and landmarks.
+    scratch: PathBuf,
+}
+
+/// A unique scratch folder per session.
+fn scratch_dir() -> PathBuf {
+    static NEXT: AtomicU64 = AtomicU64::new(0);
+    let k = NEXT.fetch_add(1, Ordering::Relaxed);
+    std::env::temp_dir().join(format!("brainshift-session-{}-{k}", std::process::id()))
+}
+
+impl Session {
+    /// The boundary loads of one `update` call.
+    fn loads(
+        &self,
+        py: Python<'_>,
+        displacements: Option<&Bound<'_, PyDict>>,
+        surface: Option<&Bound<'_, PyDict>>,
+        landmarks: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<Vec<(String, BoundaryLoad)>> {
+        let mut out = Vec::new();
+        let key = |k: Bound<'_, PyAny>, what: &str| -> PyResult<String> {
+            k.extract()
+                .map_err(|_| PyValueError::new_err(format!("{what}: keys are node set names")))
+        };
+        for (k, v) in displacements.into_iter().flat_map(|d| d.iter()) {
+            let name = key(k, "displacements")?;
+            let load = match v.extract::<[f64; 3]>() {
+                Ok(d) => BoundaryLoad::Uniform(Vector3::from(d)),
+                Err(_) => {
+                    let rows = f64_rows(py, &v, 3, &format!("displacements['{name}']"))?;
+                    BoundaryLoad::PerNode(rows.into_iter().map(Vector3::from).collect())
+                }
+            };
+            out.push((name, load));
+        }
+        for (k, v) in surface.into_iter().flat_map(|d| d.iter()) {
+            let name = key(k, "surface")?;
+            let path = match v.cast::<PyTuple>() {
+                Ok(t) if t.len() == 2 => self.write_surface(py, &name, t)?,
+                _ => v.extract::<PathBuf>().map_err(|_| {
+                    PyValueError::new_err(format!(
+                        "surface['{name}'] must be a path or (points (n, 3), triangles (m, 3))"
+                    ))
+                })?,
+            };
+            out.push((name, BoundaryLoad::Surface(path)));
+        }
+        for (k, v) in landmarks.into_iter().flat_map(|d| d.iter()) {
+            let name = key(k, "landmarks")?;
+            let path = match v.cast::<PyTuple>() {
+                Ok(t) if t.len() == 2 => self.write_landmarks(py, &name, t)?,
+                _ => v.extract::<PathBuf>().map_err(|_| {
+                    PyValueError::new_err(format!(
+                        "landmarks['{name}'] must be a CSV path or (pre (m, 3), intra (m, 3))"
+                    ))
+                })?,
+            };
+            out.push((name, BoundaryLoad::Landmarks(path)));
+        }
+        Ok(out)
+    }
+
+    /// Writes `(points, triangles)` as an OFF file in the scratch folder.
+    fn write_surface(
+        &self,
+        py: Python<'_>,
+        name: &str,
+        t: &Bound<'_, PyTuple>,
+    ) -> PyResult<PathBuf> {
+        let what = format!("surface['{name}']");
+        let points = f64_rows(py, &t.get_item(0)?, 3, &format!("{what} points"))?;
+        let n = points.len();
+        let tris = index_rows(py, &t.get_item(1)?, &[3], n, &format!("{what} triangles"))?;
+        let surface = TriSurface::new(
+            points.into_iter().map(Point3::from).collect(),
+            tris.into_iter().map(|t| [t[0], t[1], t[2]]).collect(),
+        );
+        let path = self.scratch.join(format!("{name}-surface.off"));
+        std::fs::create_dir_all(&self.scratch)
+            .and_then(|()| {
+                bs_mesh::io::write_surface(&path, &surface).map_err(std::io::Error::other)
+            })
+            .map_err(|e| {
+                pyo3::exceptions::PyOSError::new_err(format!("{}: {e}", path.display()))
+            })?;
+        Ok(path)
+    }
+
+    /// Writes `(pre, intra)` landmark pairs as the CSV the scene's `landmarks` key reads.
+    fn write_landmarks(
+        &self,
+        py: Python<'_>,
+        name: &str,
+        t: &Bound<'_, PyTuple>,
+    ) -> PyResult<PathBuf> {
+        let pre = f64_rows(py, &t.get_item(0)?, 3, &format!("landmarks['{name}'] pre"))?;
+        let intra = f64_rows(py, &t.get_item(1)?, 3, &format!("landmarks['{name}'] intra"))?;
+        if pre.len() != intra.len() {
+            return Err(PyValueError::new_err(format!(
+                "landmarks['{name}']: {} pre-operative and {} intra-operative points; give pairs",
+                pre.len(),
+                intra.len()
+            )));
+        }
+        let mut text = String::from("x,y,z,x2,y2,z2\n");
+        for (a, b) in pre.iter().zip(&intra) {
+            text += &format!("{:?},{:?},{:?},{:?},{:?},{:?}\n", a[0], a[1], a[2], b[0], b[1], b[2]);
+        }
+        let path = self.scratch.join(format!("{name}-landmarks.csv"));
+        std::fs::create_dir_all(&self.scratch).and_then(|()| std::fs::write(&path, text)).map_err(
+            |e| pyo3::exceptions::PyOSError::new_err(format!("{}: {e}", path.display())),
+        )?;
+        Ok(path)
+    }
+}
+
+#[pymethods]
+impl Session {
+    /// Prepares `scene` once (composition, contact lists, the solver's preconditioner).
+    /// `threads`: worker threads of every update (None: all cores).
+    #[new]
+    #[pyo3(signature = (scene, threads=None))]
+    fn new(py: Python<'_>, scene: &Scene, threads: Option<usize>) -> PyResult<Session> {
+        let prepared = scene.prepared.clone();
+        let s = py
+            .detach(|| with_threads(threads, || bs_scene::Session::new(prepared)))
+            .map_err(PyValueError::new_err)?
+            .map_err(|e| scene_err(py, e))?;
+        Ok(Session { inner: Mutex::new(s), threads, scratch: scratch_dir() })
+    }
+
+    /// Solves new measurements warm from the last good state and verifies the result.
+    /// `displacements={"SET": [dx, dy, dz]}` (uniform) or an (n, 3) array in the order of
+    /// `set_nodes("SET")`; `surface={"SET": path or (points, triangles)}`;
+    /// `landmarks={"SET": csv path or (pre, intra)}`. Boundaries not named keep their last
+    /// values. On an error the session stays at its last good state.
+    #[pyo3(signature = (displacements=None, surface=None, landmarks=None))]
+    fn update(
+        &self,
+        py: Python<'_>,
+        displacements: Option<&Bound<'_, PyDict>>,
+        surface: Option<&Bound<'_, PyDict>>,
+        landmarks: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<RunResult> {
+        let loads = self.loads(py, displacements, surface, landmarks)?;
+        let started = Instant::now();
+        let outcome = py.detach(|| {
+            with_threads(self.threads, || {
+                let threads = rayon::current_num_threads();
+                let mut s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+                let solved = if loads.is_empty() {
+                    s.solve(&mut |_| {})
+                } else {
+                    s.update(&loads, &mut |_| {})
+                }?;
+                let ctx = RunContext { total_seconds: started.elapsed().as_secs_f64(), threads };
+                Ok::<_, SceneError>(RunResult::new(s.run(), solved, ctx))
+            })
+        });
+        outcome.map_err(PyValueError::new_err)?.map_err(|e| scene_err(py, e))
+    }
+
+    /// Back to the reference state and the scene's own loads.
+    fn reset(&self) {
+        self.inner.lock().unwrap_or_else(|e| e.into_inner()).reset();
+    }
+
+    /// The node ids of node set `name` of a prescribed boundary, in the order an (n, 3)
+    /// `displacements` array follows.
+    fn set_nodes(&self, py: Python<'_>, name: &str) -> PyResult<Vec<u64>> {
+        let s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        let nodes = s.set_nodes(name).map_err(|e| scene_err(py, e))?;
+        let ids = &s.run().prepared.mesh.node_ids;
+        Ok(nodes.into_iter().map(|n| ids[n]).collect())
+    }
+
+    fn __repr__(&self) -> String {
+        let s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        format!(
+            "<brainshift.Session {}: {} nodes>",
+            s.run().prepared.path.display(),
+            s.displacements().len()
+        )
+    }
+}
+
+impl Drop for Session {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.scratch);
+    }
+}

@@ -1,0 +1,71 @@
+"""brainshift.Session: a live session's updates against the command line. A session's
+first solve, and any update after reset(), starts from the reference state exactly as
+`brainshift run` does: bit-identical. A warm update (from the last state) agrees with the
+cold CLI run to the solver tolerance of the scene (1e-10 mm; asserted at 1e-8 mm)."""
+
+import numpy as np
+import pytest
+
+from brainshift import BrainshiftError, Scene, Session
+
+from test_bindings import read_csv
+
+CUBE = "cube/uniaxial-t4.toml"
+
+
+def scene_with_top(fixtures, tmp_path, dz):
+    """The cube scene with its top face (ZMAX) pushed dz instead of -0.1."""
+    text = (fixtures / CUBE).read_text()
+    text = text.replace('"../basic/cube-t4.msh"', repr(str(fixtures / "basic" / "cube-t4.msh")).replace("'", '"'))
+    text = text.replace("displacement = { z = -0.1 }", f"displacement = {{ z = {dz!r} }}")
+    path = tmp_path / f"cube-{dz}.toml"
+    path.write_text(text)
+    return path
+
+
+def cli_displacements(cli, scene, out):
+    o = cli("run", scene, "--out", out, "--quiet")
+    assert o.returncode == 0, o.stderr
+    return read_csv(out / "displacements.csv")[1]
+
+
+def test_session_matches_the_cli_cold_bit_for_bit_and_warm_to_the_tolerance(fixtures, cli, tmp_path):
+    session = Session(Scene.from_toml(fixtures / CUBE))
+    first = session.update()  # the scene's own load, from the reference state
+    u_cli = cli_displacements(cli, fixtures / CUBE, tmp_path / "a")
+    assert np.array_equal(first.displacements.view(np.uint64), u_cli.view(np.uint64))
+
+    u_cli = cli_displacements(cli, scene_with_top(fixtures, tmp_path, -0.2), tmp_path / "b")
+    warm = session.update(displacements={"ZMAX": [0.0, 0.0, -0.2]})
+    assert np.abs(warm.displacements - u_cli).max() < 1e-8
+    assert warm.report["converged"] and warm.report["max_displacement"] > 0.2
+
+    session.reset()
+    cold = session.update(displacements={"ZMAX": [0.0, 0.0, -0.2]})
+    assert np.array_equal(cold.displacements.view(np.uint64), u_cli.view(np.uint64))
+
+
+def test_per_node_displacements_follow_set_nodes(fixtures):
+    session = Session(Scene.from_toml(fixtures / CUBE))
+    ids = session.set_nodes("ZMAX")
+    per_node = np.zeros((len(ids), 3))
+    per_node[:, 2] = -0.15
+    a = session.update(displacements={"ZMAX": per_node})
+    rows = {int(i): k for k, i in enumerate(a.node_ids)}
+    assert np.all(a.displacements[[rows[i] for i in ids], 2] == -0.15)
+    b = session.update(displacements={"ZMAX": [0.0, 0.0, -0.15]})
+    assert np.abs(a.displacements - b.displacements).max() < 1e-8
+
+
+def test_a_refused_update_keeps_the_session(fixtures):
+    session = Session(Scene.from_toml(fixtures / CUBE))
+    good = session.update(displacements={"ZMAX": [0.0, 0.0, -0.05]}).displacements
+    with pytest.raises(BrainshiftError, match="prescribed node sets are: ZMAX"):
+        session.update(displacements={"TOP": [0.0, 0.0, -0.1]})
+    with pytest.raises(BrainshiftError, match="leaves this component free"):
+        session.update(displacements={"ZMAX": [0.1, 0.0, -0.1]})
+    with pytest.raises(BrainshiftError, match="2 displacements for"):
+        session.update(displacements={"ZMAX": np.zeros((2, 3))})
+    # Still at the last good state: an update with the same load returns it unchanged.
+    again = session.update(displacements={"ZMAX": [0.0, 0.0, -0.05]}).displacements
+    assert np.abs(again - good).max() < 1e-8
