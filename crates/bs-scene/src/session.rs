@@ -161,7 +161,7 @@ impl Session {
         let p = &self.run.prepared;
         let mut prescribed = p.prescribed.clone();
         for (name, load) in loads {
-            let (_, original) = self.boundary(name)?;
+            let (i, original) = self.boundary(name)?;
             let cleared = Boundary {
                 displacement: None,
                 displacement_file: None,
@@ -178,9 +178,11 @@ impl Session {
                 BoundaryLoad::PerNode(_) => original.clone(),
             };
             let single = Scene { boundaries: vec![b], ..p.scene.clone() };
-            let mut values = resolve_boundaries(&p.path, &single, &p.mesh)?;
+            let mut values =
+                resolve_boundaries(&p.path, &single, &p.mesh).map_err(|e| renumber(e, i))?;
             if let BoundaryLoad::PerNode(v) = load {
-                let (_, nodes) = select_nodes(&p.path, &single, &p.mesh, 0, &single.boundaries[0])?;
+                let (_, nodes) = select_nodes(&p.path, &single, &p.mesh, 0, &single.boundaries[0])
+                    .map_err(|e| renumber(e, i))?;
                 per_node_values(p, name, &nodes, v, &mut values)?;
             }
             for (now, new) in prescribed.iter_mut().zip(&values) {
@@ -216,6 +218,21 @@ impl Session {
         c.load_scale = bs_dr::load_scale(&c.model, &loads);
         c.loads = loads;
         Ok(std::mem::replace(&mut self.run.prepared.prescribed, prescribed))
+    }
+}
+
+/// An error about the one boundary of a single-boundary scene, keyed as the scene's
+/// `[[boundary]]` number `i + 1`.
+fn renumber(e: SceneError, i: usize) -> SceneError {
+    let fix = |key: String| key.replacen("[[boundary]] #1", &format!("[[boundary]] #{}", i + 1), 1);
+    match e {
+        SceneError::Read { scene, key, message } => {
+            SceneError::Read { scene, key: fix(key), message }
+        }
+        SceneError::Set { scene, key, set, message } => {
+            SceneError::Set { scene, key: fix(key), set, message }
+        }
+        e => e,
     }
 }
 

@@ -122,6 +122,10 @@ fn a_failed_update_leaves_the_last_good_state() {
     assert!(m.contains("3 displacements for 49 nodes"), "{m}");
     let m = message(s.update(&top([f64::NAN, 0.0, -1.0]), &mut |_| {}));
     assert!(m.contains("finite"), "{m}");
+    // A measured surface that cannot be read: named with the scene's boundary number.
+    let missing = vec![("TOP".to_string(), BoundaryLoad::Surface(d.join("missing.stl")))];
+    let m = message(s.update(&missing, &mut |_| {}));
+    assert!(m.contains("[[boundary]] #2 surface") && m.contains("missing.stl"), "{m}");
     // A load no solver carries: the top pushed 45 mm through a 40 mm box.
     let m = message(s.update(&top([0.0, 0.0, -45.0]), &mut |_| {}));
     assert!(m.contains("neither solver took the load"), "{m}");
@@ -142,4 +146,47 @@ fn dynamic_relaxation_updates_warm_too() {
     // load, is generous for both.
     let diff = max_diff(&warm.solution.displacements, &cold(&d, [0.0, 0.0, -3.0]));
     assert!(diff < 1e-3, "DR warm vs NK cold: {diff:e} mm");
+}
+
+/// A flat intra-operative surface 3 mm below the top face, and landmark pairs all moved
+/// (0, 0, −3): both put every TOP node at (0, 0, −3) exactly (the closest point on a plane
+/// below a flat face is straight down; the thin-plate spline of a constant displacement is
+/// that constant), so either update equals the uniform one.
+#[test]
+fn surface_and_landmark_updates_equal_the_displacement_they_measure() {
+    let d = tmp("measured");
+    let surface = bs_mesh::TriSurface::new(
+        vec![
+            bs_mesh::Point3::new(-20.0, -20.0, 37.0),
+            bs_mesh::Point3::new(60.0, -20.0, 37.0),
+            bs_mesh::Point3::new(60.0, 60.0, 37.0),
+            bs_mesh::Point3::new(-20.0, 60.0, 37.0),
+        ],
+        vec![[0, 1, 2], [0, 2, 3]],
+    );
+    bs_mesh::io::write_surface(&d.join("intraop.off"), &surface).unwrap();
+    let mut pairs = String::from("x,y,z,x2,y2,z2\n");
+    for (x, y, z) in [
+        (0.0, 0.0, 40.0),
+        (40.0, 0.0, 40.0),
+        (0.0, 40.0, 40.0),
+        (40.0, 40.0, 40.0),
+        (20.0, 20.0, 20.0),
+    ] {
+        pairs += &format!("{x},{y},{z},{x},{y},{}\n", z - 3.0);
+    }
+    std::fs::write(d.join("pairs.csv"), pairs).unwrap();
+    let mut s =
+        Session::new(Prepared::load(&scene(&d, [0.0, 0.0, -1.0], "newton-krylov")).unwrap())
+            .unwrap();
+    s.solve(&mut |_| {}).unwrap();
+    let uniform = s.update(&top([0.0, 0.0, -3.0]), &mut |_| {}).unwrap().solution.displacements;
+    for load in
+        [BoundaryLoad::Surface(d.join("intraop.off")), BoundaryLoad::Landmarks(d.join("pairs.csv"))]
+    {
+        s.reset();
+        let measured = s.update(&[("TOP".into(), load.clone())], &mut |_| {}).unwrap();
+        let diff = max_diff(&measured.solution.displacements, &uniform);
+        assert!(diff < TOL, "{load:?}: {diff:e} mm from the uniform update");
+    }
 }
