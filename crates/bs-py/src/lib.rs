@@ -73,6 +73,37 @@ fn with_threads<T: Send>(
     }
 }
 
+/// The solver observer of a Python `progress` callable: a dict per step or iteration (step,
+/// load_factor, error_estimate, max_displacement, nodes_in_contact), the GIL taken for
+/// each call; the first exception the callable raises is kept in `error` (and later calls
+/// skipped) to be raised when the solve ends.
+fn observer<'a>(
+    progress: Option<&'a Py<PyAny>>,
+    error: &'a mut Option<PyErr>,
+) -> impl FnMut(&bs_scene::Progress) + 'a {
+    move |p| {
+        let Some(cb) = progress else { return };
+        if error.is_some() {
+            return;
+        }
+        Python::attach(|py| {
+            let call = || -> PyResult<()> {
+                let d = PyDict::new(py);
+                d.set_item("step", p.step)?;
+                d.set_item("load_factor", p.load_factor)?;
+                d.set_item("error_estimate", p.err)?;
+                d.set_item("max_displacement", p.max_displacement)?;
+                d.set_item("nodes_in_contact", p.contact.nodes_in_contact)?;
+                cb.call1(py, (d,))?;
+                Ok(())
+            };
+            if let Err(e) = call() {
+                *error = Some(e);
+            }
+        });
+    }
+}
+
 /// `json.loads(text)`.
 fn from_json(py: Python<'_>, text: &str) -> PyResult<Py<PyAny>> {
     Ok(py.import("json")?.call_method1("loads", (text,))?.unbind())
@@ -390,27 +421,7 @@ impl Scene {
             with_threads(threads, || {
                 let threads = rayon::current_num_threads();
                 let mut run = Run::prepare(prepared)?;
-                let solved = run.solve(&mut |p| {
-                    let Some(cb) = &progress else { return };
-                    if callback_error.is_some() {
-                        return;
-                    }
-                    Python::attach(|py| {
-                        let call = || -> PyResult<()> {
-                            let d = PyDict::new(py);
-                            d.set_item("step", p.step)?;
-                            d.set_item("load_factor", p.load_factor)?;
-                            d.set_item("error_estimate", p.err)?;
-                            d.set_item("max_displacement", p.max_displacement)?;
-                            d.set_item("nodes_in_contact", p.contact.nodes_in_contact)?;
-                            cb.call1(py, (d,))?;
-                            Ok(())
-                        };
-                        if let Err(e) = call() {
-                            callback_error = Some(e);
-                        }
-                    });
-                })?;
+                let solved = run.solve(&mut observer(progress.as_ref(), &mut callback_error))?;
                 Ok::<_, SceneError>((run, solved, threads))
             })
         });

@@ -15,7 +15,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
-use crate::{RunResult, Scene, f64_rows, index_rows, scene_err, with_threads};
+use crate::{RunResult, Scene, f64_rows, index_rows, observer, scene_err, with_threads};
 
 /// A live session of a scene: `update` takes new measurements of the scene's prescribed
 /// boundaries (keyed by node set) and solves from the last good state.
@@ -160,30 +160,38 @@ impl Session {
     /// `set_nodes("SET")`; `surface={"SET": path or (points, triangles)}`;
     /// `landmarks={"SET": csv path or (pre, intra)}`. Boundaries not named keep their last
     /// values. On an error the session stays at its last good state.
-    #[pyo3(signature = (displacements=None, surface=None, landmarks=None))]
+    /// `progress`: called with a dict per solver iteration, as in `Scene.run`.
+    #[pyo3(signature = (displacements=None, surface=None, landmarks=None, progress=None))]
     fn update(
         &self,
         py: Python<'_>,
         displacements: Option<&Bound<'_, PyDict>>,
         surface: Option<&Bound<'_, PyDict>>,
         landmarks: Option<&Bound<'_, PyDict>>,
+        progress: Option<Py<PyAny>>,
     ) -> PyResult<RunResult> {
         let loads = self.loads(py, displacements, surface, landmarks)?;
         let started = Instant::now();
+        let mut callback_error: Option<PyErr> = None;
         let outcome = py.detach(|| {
             with_threads(self.threads, || {
                 let threads = rayon::current_num_threads();
                 let mut s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+                let mut observe = observer(progress.as_ref(), &mut callback_error);
                 let solved = if loads.is_empty() {
-                    s.solve(&mut |_| {})
+                    s.solve(&mut observe)
                 } else {
-                    s.update(&loads, &mut |_| {})
+                    s.update(&loads, &mut observe)
                 }?;
                 let ctx = RunContext { total_seconds: started.elapsed().as_secs_f64(), threads };
                 Ok::<_, SceneError>(RunResult::new(s.run(), solved, ctx))
             })
         });
-        outcome.map_err(PyValueError::new_err)?.map_err(|e| scene_err(py, e))
+        let result = outcome.map_err(PyValueError::new_err)?.map_err(|e| scene_err(py, e))?;
+        match callback_error {
+            Some(e) => Err(e),
+            None => Ok(result),
+        }
     }
 
     /// Back to the reference state and the scene's own loads.

@@ -36,7 +36,9 @@ def test_session_matches_the_cli_cold_bit_for_bit_and_warm_to_the_tolerance(fixt
     assert np.array_equal(first.displacements.view(np.uint64), u_cli.view(np.uint64))
 
     u_cli = cli_displacements(cli, scene_with_top(fixtures, tmp_path, -0.2), tmp_path / "b")
-    warm = session.update(displacements={"ZMAX": [0.0, 0.0, -0.2]})
+    steps = []
+    warm = session.update(displacements={"ZMAX": [0.0, 0.0, -0.2]}, progress=steps.append)
+    assert len(steps) == warm.report["steps"] and steps[-1]["load_factor"] == 1.0
     assert np.abs(warm.displacements - u_cli).max() < 1e-8
     assert warm.report["converged"] and warm.report["max_displacement"] > 0.2
 

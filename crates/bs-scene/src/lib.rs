@@ -67,6 +67,7 @@ pub mod sweep;
 pub mod verdict;
 pub mod verify;
 
+pub use bs_dr::Progress;
 pub use error::SceneError;
 pub use prepare::Prepared;
 pub use run::{Run, Solved};

@@ -129,6 +129,8 @@ fn a_failed_update_leaves_the_last_good_state() {
     // A load no solver carries: the top pushed 45 mm through a 40 mm box.
     let m = message(s.update(&top([0.0, 0.0, -45.0]), &mut |_| {}));
     assert!(m.contains("neither solver took the load"), "{m}");
+    // The fraction reached is of the change asked (from -2 to -45 mm), not of the 45 mm.
+    assert!(m.contains("of 43"), "{m}");
     // The session is where it was, and the next update starts from there.
     assert_eq!(s.displacements(), good.as_slice());
     let next = s.update(&top([0.0, 0.0, -3.0]), &mut |_| {}).unwrap();

@@ -29,7 +29,8 @@ pub(crate) struct Problem<'a> {
     /// Absolute tolerance and divergence bound (length units).
     pub tol: f64,
     pub limit: f64,
-    /// The full load's size.
+    /// The load's size: the largest prescribed value, or from a start state the largest
+    /// change of a prescribed value.
     pub load: f64,
     /// The state the solve starts from (a converged state of other prescribed values), or
     /// `None` for the reference state.
@@ -88,7 +89,7 @@ impl<'a> Problem<'a> {
             params,
             tol: params.tolerance * scale,
             limit: params.divergence_factor * scale,
-            load: loads.max_prescribed(),
+            load: change(loads, start),
             start,
         })
     }
@@ -154,4 +155,18 @@ impl<'a> Problem<'a> {
             contact,
         )
     }
+}
+
+/// The largest prescribed value of `loads`, or its largest change from `start`.
+fn change(loads: &Loads, start: Option<&[Vector3<f64>]>) -> f64 {
+    let Some(s) = start else { return loads.max_prescribed() };
+    let mut m = 0.0f64;
+    for (a, sa) in s.iter().enumerate() {
+        for k in 0..3 {
+            if loads.is_constrained(a, k) {
+                m = m.max((loads.value(a, k) - sa[k]).abs());
+            }
+        }
+    }
+    m
 }
