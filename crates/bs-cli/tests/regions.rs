@@ -266,3 +266,93 @@ fn two_materials_in_series_split_the_shortening_as_the_closed_form() {
         }
     }
 }
+
+/// `[output] surfaces = ["FIRST"]`: `run` writes the deformed boundary of the first bar.
+/// Its closed form: the box [0, 1] × [0, 1] × [0, λ₁L₁], so the VTK points are the set's
+/// boundary nodes X moved by the exact field (to the solver tolerance, as above), and the
+/// STL (single-precision coordinates) encloses λ₁L₁ mm³ with area 2 + 4λ₁L₁ mm², to 1e-6.
+#[test]
+fn output_surface_of_a_region_is_its_deformed_boundary() {
+    let [(_, [(t1, m1), (t2, m2)]), _] = pairs();
+    let stretches = confined_series_stretches((&m1, L1), (&m2, L2), SHORTENING).unwrap();
+    for element in ["t4", "h8"] {
+        let dir = TempDir::new(&format!("surface-{element}"));
+        let (_, nodes) = run_box(&dir.0, element, &t1, &t2, "[output]\nsurfaces = [\"FIRST\"]\n");
+        let out = dir.0.join("out");
+        // The first bar's boundary nodes: on the outer faces with z ≤ L₁, or on z = 0 or L₁.
+        let on_boundary = |p: &[f64; 3]| {
+            p[2] <= L1 + 1e-12
+                && (p[0] == 0.0
+                    || p[0] == 1.0
+                    || p[1] == 0.0
+                    || p[1] == 1.0
+                    || p[2] == 0.0
+                    || (p[2] - L1).abs() < 1e-12)
+        };
+        let mut expected: Vec<u64> =
+            nodes.iter().filter(|(_, p)| on_boundary(p)).map(|(id, _)| *id).collect();
+        expected.sort_unstable();
+
+        let vtk = std::fs::read_to_string(out.join("surface-FIRST.vtk")).unwrap();
+        let lines: Vec<&str> = vtk.lines().collect();
+        assert!(lines[1].contains("SPACE=RAS") && lines[1].contains("units mm"), "{}", lines[1]);
+        let n: usize =
+            lines[4].strip_prefix("POINTS ").unwrap().split(' ').next().unwrap().parse().unwrap();
+        let points: Vec<[f64; 3]> = lines[5..5 + n]
+            .iter()
+            .map(|l| {
+                let v: Vec<f64> = l.split(' ').map(|x| x.parse().unwrap()).collect();
+                [v[0], v[1], v[2]]
+            })
+            .collect();
+        let ids_at = lines.iter().position(|l| l.starts_with("node_id 1 ")).unwrap() + 1;
+        let ids: Vec<u64> = lines[ids_at..ids_at + n].iter().map(|l| l.parse().unwrap()).collect();
+        let mut sorted = ids.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, expected, "{element}: the surface's nodes");
+        let mut worst = 0.0f64;
+        for (p, id) in points.iter().zip(&ids) {
+            let x = nodes[id];
+            let exact = [x[0], x[1], x[2] + exact_uz(x[2], stretches)];
+            for c in 0..3 {
+                worst = worst.max((p[c] - exact[c]).abs());
+            }
+        }
+        assert!(worst <= 1e-6 * SHORTENING, "{element}: VTK points off by {worst:e}");
+
+        let stl = bs_mesh::io::read_surface(&out.join("surface-FIRST.stl")).unwrap();
+        let height = stretches[0] * L1;
+        let (volume, area) = (stl.signed_volume(), stl.area());
+        assert!((volume - height).abs() <= 1e-6 * height, "{element}: volume {volume} vs {height}");
+        let exact_area = 2.0 + 4.0 * height;
+        assert!((area - exact_area).abs() <= 1e-6 * exact_area, "{element}: area {area}");
+    }
+}
+
+/// An unknown `[output] surfaces` name is refused by `check` and `run`, naming the key, the
+/// name and the element sets the mesh has; `run` writes nothing.
+#[test]
+fn unknown_output_surface_is_refused_with_the_known_sets() {
+    let dir = TempDir::new("unknown-surface");
+    let (deck, _) = box_deck("h8");
+    std::fs::write(dir.0.join("box.inp"), deck).unwrap();
+    let [(_, [(t1, _), (t2, _)]), _] = pairs();
+    let scene = dir.0.join("scene.toml");
+    std::fs::write(&scene, box_scene("h8", &t1, &t2, "[output]\nsurfaces = [\"VENTRICLES\"]\n"))
+        .unwrap();
+    let out = dir.0.join("out");
+    for args in [
+        vec!["check", scene.to_str().unwrap()],
+        vec!["run", scene.to_str().unwrap(), "--out", out.to_str().unwrap(), "--quiet"],
+    ] {
+        let o = brainshift(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("[output] surfaces = \"VENTRICLES\": no such element set in")
+                && err.contains("the element sets are: FIRST, SECOND"),
+            "{args:?}: {err}"
+        );
+    }
+    assert!(!out.exists(), "run wrote {out:?}");
+}
