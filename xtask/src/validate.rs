@@ -353,7 +353,13 @@ pub fn facet_allowance(skull: &TriSurface) -> Result<(f64, f64), String> {
 /// The targets (0.03 mm mean, 0.3 mm max) cap it from above.
 fn calculix(add: &mut dyn FnMut(Row)) -> Result<(), String> {
     calculix_without_contact(add)?;
-    for case in ["sphere-shell", "ellipsoid", "mni152", "mni152-regions"] {
+    calculix_cases(add, &["sphere-shell", "ellipsoid", "mni152", "mni152-regions"])
+}
+
+/// [`calculix`]'s comparison for the named fixtures (`cargo xtask validate --calculix CASE`
+/// runs one alone).
+fn calculix_cases(add: &mut dyn FnMut(Row), cases: &[&str]) -> Result<(), String> {
+    for &case in cases {
         let dir = root().join("fixtures").join(case).join("reference");
         let (Some(k10), Some(k1)) =
             (read_reference(&dir, "ccx-k10")?, read_reference(&dir, "ccx-k1")?)
@@ -509,7 +515,27 @@ pub fn main(args: &[String]) -> Result<(), String> {
     let scope = match args {
         [] => Scope::Full,
         [q] if q == "--quick" => Scope::Quick,
-        _ => return Err("usage: cargo xtask validate [--quick]".into()),
+        [flag, case] if flag == "--calculix" => {
+            // One CalculiX case alone, printed, docs/validation.md untouched.
+            let mut failed = 0;
+            calculix_cases(
+                &mut |r: Row| {
+                    println!(
+                        "{:<46} {:<40} {:>11.3e} {:>10.1e} {:<3} {}",
+                        r.case,
+                        r.quantity,
+                        r.value,
+                        r.tolerance,
+                        r.unit,
+                        if r.pass() { "pass" } else { "FAIL" }
+                    );
+                    failed += usize::from(!r.pass());
+                },
+                &[case.as_str()],
+            )?;
+            return if failed == 0 { Ok(()) } else { Err(format!("{failed} case(s) failed")) };
+        }
+        _ => return Err("usage: cargo xtask validate [--quick | --calculix CASE]".into()),
     };
     let rows = run(scope)?;
     if scope == Scope::Quick {

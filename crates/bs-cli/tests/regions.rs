@@ -110,21 +110,21 @@ fn box_deck(element: &str) -> (String, HashMap<u64, [f64; 3]>) {
         }
     }
     let top = zs.len() - 1;
-    let faces: [(&str, Box<dyn Fn(usize, usize, usize) -> bool>); 6] = [
-        ("XMIN", Box::new(|i, _, _| i == 0)),
-        ("XMAX", Box::new(|i, _, _| i == n)),
-        ("YMIN", Box::new(|_, j, _| j == 0)),
-        ("YMAX", Box::new(|_, j, _| j == n)),
-        ("ZMIN", Box::new(|_, _, k| k == 0)),
-        ("ZMAX", Box::new(move |_, _, k| k == top)),
-    ];
-    for (name, on) in faces {
+    let on = |face: &str, i: usize, j: usize, k: usize| match face {
+        "XMIN" => i == 0,
+        "XMAX" => i == n,
+        "YMIN" => j == 0,
+        "YMAX" => j == n,
+        "ZMIN" => k == 0,
+        _ => k == top,
+    };
+    for name in ["XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"] {
         writeln!(deck, "*NSET, NSET={name}").unwrap();
         let mut ids = Vec::new();
         for k in 0..=top {
             for j in 0..=n {
                 for i in 0..=n {
-                    if on(i, j, k) {
+                    if on(name, i, j, k) {
                         ids.push(id(i, j, k).to_string());
                     }
                 }

@@ -319,7 +319,7 @@ fn output_surfaces(sp: &Path, scene: &Scene, mesh: &Mesh) -> Result<(), SceneErr
                     names(mesh.element_sets.keys())
                 )));
             }
-            Some(members) if members.is_empty() => {
+            Some([]) => {
                 return Err(set(format!(
                     "the element set is empty in {}: it has no surface",
                     scene.mesh.file.display()
