@@ -78,6 +78,15 @@ pub const CASES: &[Case] = &[
         slopes: &[1.0, 10.0],
         contact: true,
     },
+    // The same without the skull: the per-region materials alone (ccx converges in minutes
+    // where the contact runs above stall at 80 % of the load).
+    Case {
+        name: "mni152-regions",
+        scene: "scene.toml",
+        stem: "ccx-nocontact",
+        slopes: &[0.0],
+        contact: false,
+    },
     Case {
         name: "ellipsoid",
         scene: "scene-40mm.toml",
