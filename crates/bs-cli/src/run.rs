@@ -166,7 +166,7 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
             "converged in {} {} ({:.3} s preparation, {:.3} s solve of which {:.3} s contact, \
              {:.3} s total): error estimate {:.2e} {u_unit}, max displacement {:.4} {u_unit}, {} \
              nodes in contact, max penetration before correction {:.2e} {u_unit}; verified: min J \
-             {:.3}, equilibrium residual {:.1e} (bound {:.1e})\nwrote {}, {}, {}, {}{}\n",
+             {:.3}, equilibrium residual {:.1e} (bound {:.1e})\nwrote {}, {}, {}, {}{}{}\n",
             report.steps,
             if report.solver == "dr" { "steps" } else { "iterations" },
             report.prepare_seconds,
@@ -184,7 +184,12 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
             written.vtk.display(),
             written.csv.display(),
             written.report.display(),
-            written.skull.as_ref().map(|s| format!(", {}", s.display())).unwrap_or_default()
+            written.skull.as_ref().map(|s| format!(", {}", s.display())).unwrap_or_default(),
+            written
+                .surfaces
+                .iter()
+                .map(|(_, vtk, stl)| format!(", {}, {}", vtk.display(), stl.display()))
+                .collect::<String>()
         ));
     }
     Ok(ExitCode::SUCCESS)

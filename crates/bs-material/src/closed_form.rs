@@ -1,5 +1,10 @@
 //! Closed-form homogeneous states of the laws here: independent expectations for the
 //! patch tests of the finite-element code (bs-cli's tests, `cargo xtask validate`).
+//!
+//! Each formula is written out here from the law's energy, not evaluated through the law's
+//! kernels, so that a test comparing the two can fail.
+
+use crate::material::Material;
 
 /// Lateral stretch `l` of a decoupled Neo-Hookean body in uniaxial stress with axial stretch
 /// `lambda` (shear modulus `mu`, bulk modulus `kappa`): the root of the lateral Cauchy stress
@@ -27,6 +32,80 @@ pub fn neo_hookean_uniaxial_lateral_stretch(lambda: f64, mu: f64, kappa: f64) ->
     Some(0.5 * (lo + hi))
 }
 
+/// Axial first Piola–Kirchhoff stress `P₃₃` of a confined (uniaxial strain) state
+/// `F = diag(1, 1, λ)`, written out from the law's energy; `None` for laws this module has no
+/// closed form for (Ogden).
+///
+/// * Neo-Hookean, `W = μ/2 (J^(−2/3) I₁ − 3) + κ/2 (J − 1)²` with `J = λ`, `I₁ = 2 + λ²`:
+///   `P₃₃ = ∂W/∂λ = (2μ/3) λ^(−5/3) (λ² − 1) + κ (λ − 1)`, increasing for every λ > 0.
+/// * St Venant–Kirchhoff, `W = λₗ/2 (tr E)² + μ E:E` with `E₃₃ = (λ² − 1)/2` the only strain:
+///   `P₃₃ = λ S₃₃ = (λₗ + 2μ) λ (λ² − 1)/2`, increasing for λ > 1/√3 (below, the law
+///   softens: the compressive branch the solver must not reach).
+pub fn confined_axial_pk1(material: &Material, lambda: f64) -> Option<f64> {
+    match material {
+        Material::NeoHookean(e) => Some(
+            2.0 * e.mu / 3.0 * lambda.powf(-5.0 / 3.0) * (lambda * lambda - 1.0)
+                + e.kappa * (lambda - 1.0),
+        ),
+        Material::StVenantKirchhoff(l) => {
+            Some((l.lambda + 2.0 * l.mu) * lambda * (lambda * lambda - 1.0) / 2.0)
+        }
+        Material::Ogden(_) => None,
+    }
+}
+
+/// The smallest axial stretch on the increasing (stable) branch of [`confined_axial_pk1`].
+fn confined_stable_floor(material: &Material) -> Option<f64> {
+    match material {
+        Material::NeoHookean(_) => Some(0.0),
+        Material::StVenantKirchhoff(_) => Some(1.0 / 3f64.sqrt()),
+        Material::Ogden(_) => None,
+    }
+}
+
+/// Two bars in series along their axis, each confined laterally (rollers: no lateral
+/// displacement, so each deforms homogeneously as `diag(1, 1, λᵢ)`), one end held, the other
+/// shortened by `shortening`: the axial stretches `[λ₁, λ₂]` of the bars of reference lengths
+/// `first.1` and `second.1`.
+///
+/// Equilibrium of the series: the same axial first Piola–Kirchhoff stress (force per
+/// reference area, the same cross-section) in both, `P₁(λ₁) = P₂(λ₂)`, and compatibility
+/// `L₁ λ₁ + L₂ λ₂ = L₁ + L₂ − d`. Eliminating λ₂ leaves `P₁(λ₁) − P₂((L − d − L₁λ₁)/L₂)`,
+/// increasing in λ₁ on the stable branches, whose root is found by bisection to machine
+/// precision. `None` for a law without a closed form (Ogden), non-positive lengths, or a
+/// shortening that leaves no state on both stable branches.
+pub fn confined_series_stretches(
+    first: (&Material, f64),
+    second: (&Material, f64),
+    shortening: f64,
+) -> Option<[f64; 2]> {
+    let ((m1, l1), (m2, l2)) = (first, second);
+    if !(l1 > 0.0 && l2 > 0.0 && shortening.is_finite()) {
+        return None;
+    }
+    let length = l1 + l2 - shortening;
+    let second_stretch = |s1: f64| (length - l1 * s1) / l2;
+    let g =
+        |s1: f64| Some(confined_axial_pk1(m1, s1)? - confined_axial_pk1(m2, second_stretch(s1))?);
+    let lo0 = confined_stable_floor(m1)?;
+    let hi0 = (length - l2 * confined_stable_floor(m2)?) / l1;
+    // Open interval: step inside both ends so that neither stretch is at its floor.
+    let (mut lo, mut hi) = (lo0 + 1e-12 * (hi0 - lo0), hi0 - 1e-12 * (hi0 - lo0));
+    if !(lo < hi && g(lo)? < 0.0 && g(hi)? > 0.0) {
+        return None;
+    }
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if g(mid)? < 0.0 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let s1 = 0.5 * (lo + hi);
+    Some([s1, second_stretch(s1)])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -46,5 +125,44 @@ mod tests {
     fn nearly_incompressible_keeps_volume() {
         let l = neo_hookean_uniaxial_lateral_stretch(0.8, 1.0, 1e7).unwrap();
         assert!((l * l * 0.8 - 1.0).abs() < 1e-6, "J = {}", l * l * 0.8);
+    }
+
+    /// The closed-form P₃₃ is the derivative of each law's energy along F = diag(1, 1, λ)
+    /// (central difference of `Material::energy`, an independent path through the code).
+    #[test]
+    fn confined_stress_is_the_energy_derivative() {
+        use nalgebra::Matrix3;
+        for m in [
+            Material::neo_hookean(3000.0, 0.49).unwrap(),
+            Material::st_venant_kirchhoff(300.0, 0.1).unwrap(),
+        ] {
+            for lambda in [0.7, 0.93, 1.0, 1.2] {
+                let w = |s: f64| m.energy(&Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, s));
+                let h = 1e-5;
+                let fd = (w(lambda + h).unwrap() - w(lambda - h).unwrap()) / (2.0 * h);
+                let p = confined_axial_pk1(&m, lambda).unwrap();
+                let scale = m.elastic().p_wave_modulus();
+                assert!((p - fd).abs() <= 1e-7 * scale, "{} at {lambda}: {p} vs {fd}", m.name());
+            }
+        }
+    }
+
+    /// Two equal materials in series stretch alike: λ₁ = λ₂ = 1 − d/L. A stiffer second bar
+    /// takes less of the shortening, and the stresses balance.
+    #[test]
+    fn series_split_balances_the_stresses() {
+        let a = Material::neo_hookean(3000.0, 0.3).unwrap();
+        let [s1, s2] = confined_series_stretches((&a, 0.6), (&a, 0.4), 0.1).unwrap();
+        assert!((s1 - 0.9).abs() < 1e-14 && (s2 - 0.9).abs() < 1e-14, "{s1} {s2}");
+        let b = Material::st_venant_kirchhoff(1000.0, 0.2).unwrap();
+        let [s1, s2] = confined_series_stretches((&a, 0.6), (&b, 0.4), 0.1).unwrap();
+        assert!(s1 > 0.9 && s2 < 0.9, "{s1} {s2}");
+        assert!((0.6 * s1 + 0.4 * s2 - 0.9).abs() < 1e-14);
+        let (p1, p2) = (confined_axial_pk1(&a, s1).unwrap(), confined_axial_pk1(&b, s2).unwrap());
+        assert!((p1 - p2).abs() <= 1e-12 * p1.abs(), "{p1} vs {p2}");
+        // No state: a shortening beyond the SVK bar's stable branch.
+        assert!(confined_series_stretches((&b, 0.5), (&b, 0.5), 0.5).is_none());
+        let o = Material::ogden(3000.0, 0.49, -4.7).unwrap();
+        assert!(confined_series_stretches((&a, 0.5), (&o, 0.5), 0.1).is_none());
     }
 }

@@ -1,5 +1,6 @@
 //! CalculiX, the independent reference: a scene written as a CalculiX deck (the same brain
-//! mesh, the same Neo-Hookean law, the rigid skull as fixed wedges with penalty contact),
+//! mesh, the same laws per region — Neo-Hookean as NEO HOOKE, St Venant–Kirchhoff as
+//! ELASTIC under NLGEOM —, the rigid skull as fixed wedges with penalty contact),
 //! CalculiX's printed displacements read back, and the stored reference solutions
 //! (`fixtures/<case>/reference/TAG.{json,csv}`) read for comparison. Running ccx is the
 //! driver's job (`cargo xtask reference`); the formats live here, side by side.
@@ -33,6 +34,9 @@ impl Deck {
         if hexes > 0 || tets == 0 {
             return Err("CalculiX references are written for tetrahedral meshes (C3D4)".into());
         }
+        for (r, region) in p.scene.regions.iter().enumerate() {
+            material_card(r, region, 1.0)?;
+        }
         let composed = crate::compose::compose(p).map_err(|e| e.to_string())?;
         // Stresses in N per length unit squared: Pa × (metres per unit)².
         let stress = p.scene.units.metres().powi(2);
@@ -42,7 +46,7 @@ impl Deck {
         for (i, x) in p.mesh.nodes.iter().enumerate() {
             let _ = writeln!(brain, "{}, {:.12e}, {:.12e}, {:.12e}", nid(i), x.x, x.y, x.z);
         }
-        for (r, region) in p.scene.regions.iter().enumerate() {
+        for r in 0..p.scene.regions.len() {
             let _ = writeln!(brain, "*ELEMENT, TYPE=C3D4, ELSET=REGION{r}");
             for (e, el) in p.mesh.elements.iter().enumerate() {
                 if p.region_of_element[e] == r {
@@ -58,12 +62,6 @@ impl Deck {
                         nid(n[3])
                     );
                 }
-            }
-            if region.material.model != MaterialModel::NeoHookean {
-                return Err(format!(
-                    "region '{}': only Neo-Hookean regions have a CalculiX counterpart here",
-                    region.elset
-                ));
             }
         }
         brain.push_str("*NSET, NSET=SLAVES\n");
@@ -124,15 +122,7 @@ impl Deck {
         );
         c.push_str("*INCLUDE, INPUT=brain.inp\n*INCLUDE, INPUT=skull.inp\n");
         for (r, region) in p.scene.regions.iter().enumerate() {
-            let m = region.material.moduli()?;
-            let (mu, kappa) = (m.mu * stress, m.kappa * stress);
-            let _ = writeln!(
-                c,
-                "*MATERIAL, NAME=M{r}\n*HYPERELASTIC, NEO HOOKE\n{:.12e}, {:.12e}\n\
-                 *SOLID SECTION, ELSET=REGION{r}, MATERIAL=M{r}",
-                mu / 2.0,
-                2.0 / kappa
-            );
+            let _ = writeln!(c, "{}", material_card(r, region, stress)?);
         }
         // The wedges are fixed: their material only has to make a valid section.
         c.push_str(
@@ -178,6 +168,40 @@ impl Deck {
         }
         Ok(())
     }
+}
+
+/// The `*MATERIAL` and `*SOLID SECTION` cards of region `r` (`REGION{r}`), stresses scaled
+/// by `stress` (N per length unit squared per Pa):
+/// * `neo-hookean` → `*HYPERELASTIC, NEO HOOKE` with `C10 = μ/2`, `D1 = 2/κ` (the same
+///   decoupled energy as bs-material's law);
+/// * `svk` → `*ELASTIC` with `E = 9κμ/(3κ + μ)`, `ν = (3κ − 2μ)/(2(3κ + μ))`: under the
+///   deck's `NLGEOM` step CalculiX's linear elastic material relates the second
+///   Piola–Kirchhoff stress to the Green–Lagrange strain, i.e. St Venant–Kirchhoff (checked on
+///   one confined C3D8 with ccx 2.20: σ₃₃ = (λ + 2μ) λ₃(λ₃² − 1)/2 to its 7 printed digits);
+/// * anything else (`ogden`) is refused, naming the region and the models that can be written.
+fn material_card(r: usize, region: &crate::scene::Region, stress: f64) -> Result<String, String> {
+    let m = region.material.moduli()?;
+    let (mu, kappa) = (m.mu * stress, m.kappa * stress);
+    let law = match region.material.model {
+        MaterialModel::NeoHookean => {
+            format!("*HYPERELASTIC, NEO HOOKE\n{:.12e}, {:.12e}", mu / 2.0, 2.0 / kappa)
+        }
+        MaterialModel::Svk => {
+            let young = 9.0 * kappa * mu / (3.0 * kappa + mu);
+            let poisson = (3.0 * kappa - 2.0 * mu) / (2.0 * (3.0 * kappa + mu));
+            format!("*ELASTIC\n{young:.12e}, {poisson:.12e}")
+        }
+        MaterialModel::Ogden => {
+            return Err(format!(
+                "[[region]] #{} (elset '{}'): model = \"ogden\" has no CalculiX counterpart \
+                 written here; a reference deck can hold \"neo-hookean\" (NEO HOOKE) and \
+                 \"svk\" (ELASTIC under NLGEOM) regions",
+                r + 1,
+                region.elset
+            ));
+        }
+    };
+    Ok(format!("*MATERIAL, NAME=M{r}\n{law}\n*SOLID SECTION, ELSET=REGION{r}, MATERIAL=M{r}"))
 }
 
 fn write_ids(out: &mut String, ids: impl Iterator<Item = u64>) {
@@ -273,6 +297,64 @@ pub fn field(p: &Prepared, r: &Reference, what: &str) -> Result<Vec<Vector3<f64>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn regions_fixture() -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/mni152-regions/scene.toml")
+    }
+
+    /// The regions fixture's deck: NEO HOOKE for the parenchyma and the tumour (C10 = μ/2,
+    /// D1 = 2/κ in MPa), ELASTIC for the St Venant–Kirchhoff ventricles (E = 100 Pa,
+    /// ν = 0.1 back from μ and κ), each on its own element set, in an NLGEOM step.
+    #[test]
+    fn writes_neo_hookean_and_svk_regions() {
+        let p = Prepared::load(&regions_fixture()).unwrap();
+        let deck = Deck::new(&p, Some(10.0)).unwrap();
+        let names: Vec<&str> = p.scene.regions.iter().map(|r| r.elset.as_str()).collect();
+        assert_eq!(names, ["BRAIN", "TUMOUR", "VENTRICLES"]);
+        let c = &deck.control;
+        let card = |r: usize| {
+            let start = c.find(&format!("*MATERIAL, NAME=M{r}\n")).unwrap();
+            let end = start + c[start..].find("*SOLID SECTION").unwrap();
+            let section = &c[end..end + c[end..].find('\n').unwrap()];
+            assert_eq!(section, format!("*SOLID SECTION, ELSET=REGION{r}, MATERIAL=M{r}"));
+            let lines: Vec<&str> = c[start..end].lines().collect();
+            let values: Vec<f64> = lines[2].split(',').map(|v| v.trim().parse().unwrap()).collect();
+            (lines[1].to_string(), values)
+        };
+        // E = 3000 Pa, ν = 0.49: μ = 1006.71 Pa, κ = 50 000 Pa; ×1e-6 to N/mm².
+        let (law, v) = card(0);
+        assert_eq!(law, "*HYPERELASTIC, NEO HOOKE");
+        let (mu, kappa) = (3000.0 / 2.98 * 1e-6, 3000.0 / (3.0 * 0.02) * 1e-6);
+        assert!((v[0] - mu / 2.0).abs() <= 1e-12 * mu && (v[1] - 2.0 / kappa).abs() <= 1e-6);
+        let (law, v) = card(1);
+        assert_eq!(law, "*HYPERELASTIC, NEO HOOKE");
+        assert!((v[0] - 3.0 * mu / 2.0).abs() <= 1e-12 * mu);
+        let (law, v) = card(2);
+        assert_eq!(law, "*ELASTIC");
+        assert!((v[0] - 100e-6).abs() <= 1e-15 && (v[1] - 0.1).abs() <= 1e-12, "{v:?}");
+        assert!(c.contains("*STEP, NLGEOM"));
+        // Each region's elements are its element set.
+        for (r, name) in names.iter().enumerate() {
+            let n = p.region_of_element.iter().filter(|&&x| x == r).count();
+            let set = p.mesh.element_set(name).unwrap().len();
+            assert_eq!(n, set, "{name}");
+            assert!(deck.brain.contains(&format!("*ELEMENT, TYPE=C3D4, ELSET=REGION{r}\n")));
+        }
+    }
+
+    /// A law CalculiX is not given here is refused before anything is written, naming the
+    /// region and what can be written.
+    #[test]
+    fn refuses_an_ogden_region() {
+        let path = regions_fixture();
+        let mut scene = crate::Scene::load(&path).unwrap();
+        scene.regions[2].material.model = MaterialModel::Ogden;
+        scene.regions[2].material.alpha = Some(-4.7);
+        let p = Prepared::from_scene(&path, scene).unwrap();
+        let err = Deck::new(&p, Some(10.0)).unwrap_err();
+        assert!(err.contains("[[region]] #3 (elset 'VENTRICLES'): model = \"ogden\""), "{err}");
+        assert!(err.contains("\"svk\" (ELASTIC under NLGEOM)"), "{err}");
+    }
 
     /// Two printed increments: the parser keeps the last one, with its step time.
     #[test]

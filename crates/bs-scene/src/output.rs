@@ -2,13 +2,16 @@
 //! per element; the frame as `SPACE` String field data, which 3D Slicer reads) and the same
 //! as legacy result.vtk (the frame as `SPACE=` in its title line, for meshio and every VTK
 //! reader), displacements.csv, report.json and, with a skull, skull.off (the cavity the
-//! registration outputs extend the displacement to), each written atomically (a temporary
-//! file renamed into place), so an interrupted or failed run leaves no partial file.
+//! registration outputs extend the displacement to), and for each element set named in
+//! `[output] surfaces` its deformed boundary surface (`surface-NAME.vtk`, `surface-NAME.stl`),
+//! each written atomically (a temporary file renamed into place), so an interrupted or failed
+//! run leaves no partial file.
 
 use std::path::{Path, PathBuf};
 
 use bs_dr::DrParams;
 use bs_mesh::io::{Field, Fields, write_atomic};
+use bs_mesh::{BoundarySurface, Mesh, TriSurface, Vector3};
 use serde::Serialize;
 
 use crate::SceneError;
@@ -111,6 +114,8 @@ pub struct Written {
     pub csv: PathBuf,
     /// report.json.
     pub report: PathBuf,
+    /// Per `[output] surfaces` entry: the set's name and its `.vtk` and `.stl` files.
+    pub surfaces: Vec<(String, PathBuf, PathBuf)>,
 }
 
 /// Timing and threading of a run that only the front end knows.
@@ -192,13 +197,32 @@ pub fn write_outputs(
         // The frame of the coordinates and displacements (read back by `warp` and `field`).
         field_data: vec![("SPACE".into(), p.scene.space.space().name().into())],
     };
-    let written = Written {
+    let mut written = Written {
         vtu: out.join("result.vtu"),
         vtk: out.join("result.vtk"),
         skull: p.skull.as_ref().map(|_| out.join("skull.off")),
         csv: out.join("displacements.csv"),
         report: out.join("report.json"),
+        surfaces: Vec::new(),
     };
+    for name in &p.scene.output.surfaces {
+        let set = p.mesh.element_set(name).ok_or_else(|| SceneError::Write {
+            path: out.to_path_buf(),
+            message: format!("[output] surfaces: no element set '{name}' (checked when loaded)"),
+        })?;
+        let b = deformed_set_surface(&p.mesh, set, u);
+        let (vtk, stl) =
+            (out.join(format!("surface-{name}.vtk")), out.join(format!("surface-{name}.stl")));
+        let title = format!(
+            "brainshift deformed surface of element set {name}, units {}. SPACE={}",
+            p.scene.units.symbol(),
+            p.scene.space.space().name()
+        );
+        write_atomic(&vtk, |w| write_surface_vtk(w, &title, &b, &p.mesh, u))
+            .map_err(|e| io(&vtk)(&e))?;
+        bs_mesh::io::write_surface(&stl, &b.surface).map_err(|e| io(&stl)(&e))?;
+        written.surfaces.push((name.clone(), vtk, stl));
+    }
     bs_mesh::io::write_mesh(&written.vtu, &p.mesh, &fields).map_err(|e| io(&written.vtu)(&e))?;
     bs_mesh::io::write_mesh(&written.vtk, &p.mesh, &fields).map_err(|e| io(&written.vtk)(&e))?;
     if let (Some(path), Some(skull)) = (&written.skull, &p.skull) {
@@ -222,4 +246,57 @@ pub fn write_outputs(
     write_atomic(&written.report, |w| writeln!(w, "{json}"))
         .map_err(|e| io(&written.report)(&e))?;
     Ok(written)
+}
+
+/// The deformed boundary surface of the element set `set` of `mesh` under the nodal
+/// displacements `u`: the faces of the set's elements that no other element of the set
+/// shares (so a region's surface includes its interfaces with other regions), oriented out
+/// of the set, at `X + u`. `volume_node` maps each vertex to its node, `element` each
+/// triangle to its element in `mesh`.
+pub fn deformed_set_surface(mesh: &Mesh, set: &[usize], u: &[Vector3<f64>]) -> BoundarySurface {
+    let part = Mesh {
+        nodes: mesh.nodes.clone(),
+        node_ids: mesh.node_ids.clone(),
+        elements: set.iter().map(|&e| mesh.elements[e]).collect(),
+        element_ids: set.iter().map(|&e| mesh.element_ids[e]).collect(),
+        ..Mesh::default()
+    };
+    let b = part.boundary();
+    let vertices = b.volume_node.iter().map(|&n| mesh.nodes[n] + u[n]).collect();
+    BoundarySurface {
+        surface: TriSurface::new(vertices, b.surface.triangles),
+        element: b.element.iter().map(|&e| set[e]).collect(),
+        volume_node: b.volume_node,
+    }
+}
+
+/// Legacy VTK polydata of a deformed surface: points at `X + u`, triangles, and per point
+/// the node id (`node_id`, as in result.vtk) and the displacement. The title line carries
+/// `SPACE=` (3D Slicer's convention for legacy files).
+fn write_surface_vtk(
+    w: &mut dyn std::io::Write,
+    title: &str,
+    b: &BoundarySurface,
+    mesh: &Mesh,
+    u: &[Vector3<f64>],
+) -> std::io::Result<()> {
+    let (n, t) = (b.surface.vertices.len(), b.surface.triangles.len());
+    writeln!(w, "# vtk DataFile Version 4.2\n{title}\nASCII\nDATASET POLYDATA")?;
+    writeln!(w, "POINTS {n} double")?;
+    for p in &b.surface.vertices {
+        writeln!(w, "{:?} {:?} {:?}", p.x, p.y, p.z)?;
+    }
+    writeln!(w, "POLYGONS {t} {}", 4 * t)?;
+    for [i, j, k] in &b.surface.triangles {
+        writeln!(w, "3 {i} {j} {k}")?;
+    }
+    writeln!(w, "POINT_DATA {n}\nFIELD FieldData 2\nnode_id 1 {n} unsigned_long")?;
+    for &v in &b.volume_node {
+        writeln!(w, "{}", mesh.node_ids[v])?;
+    }
+    writeln!(w, "displacement 3 {n} double")?;
+    for &v in &b.volume_node {
+        writeln!(w, "{:?} {:?} {:?}", u[v].x, u[v].y, u[v].z)?;
+    }
+    Ok(())
 }

@@ -22,6 +22,8 @@
 //! [solver]
 //! kind = "dr"
 //! tolerance = 1e-3
+//! [output]
+//! surfaces = ["VENTRICLES"]   # deformed boundary of these element sets (VTK, STL)
 //! ```
 //!
 //! Paths are relative to the scene file. Unknown keys are errors (a misspelt key must not be
@@ -421,6 +423,17 @@ pub struct MeshSection {
     pub element: Option<ElementChoice>,
 }
 
+/// The `[output]` table: result files beyond those every run writes.
+#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSection {
+    /// Element sets whose deformed boundary surface `run` writes as
+    /// `surface-NAME.vtk` and `surface-NAME.stl` (the scene's frame and unit), e.g. the
+    /// ventricles for a Hausdorff distance against an intra-operative segmentation.
+    #[serde(default)]
+    pub surfaces: Vec<String>,
+}
+
 /// A parsed scene, paths resolved against the scene file's folder.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -443,6 +456,9 @@ pub struct Scene {
     /// Solver settings.
     #[serde(default)]
     pub solver: Solver,
+    /// Extra outputs.
+    #[serde(default)]
+    pub output: OutputSection,
 }
 
 impl Scene {
