@@ -147,20 +147,6 @@ impl Prepared {
                 ));
             }
         }
-        // T4ANP's nodal average of J runs over every element at a node, across region
-        // boundaries: two bars in series (crates/bs-cli/tests/regions.rs) miss their exact
-        // split by 20 % of the push, or do not converge beside a soft compressible region.
-        if element == ElementChoice::T4anp
-            && let Some(other) =
-                scene.regions.iter().find(|r| r.material != scene.regions[0].material)
-        {
-            warnings.push(format!(
-                "element t4anp averages the volume ratio J at nodes across region boundaries \
-                 ('{}' and '{}' have different materials), which smears their interfaces; \
-                 use element = \"t4\" or \"h8\" when the regions' interplay matters",
-                scene.regions[0].elset, other.elset
-            ));
-        }
         if scene.contact.is_some()
             && !prescribed.iter().any(|p| p.iter().all(|c| c.is_some_and(|v| v == 0.0)))
         {

@@ -26,8 +26,12 @@ pub(crate) struct Elements {
     pub element_ids: Vec<u64>,
     /// Node → force slots.
     pub slots: SlotMap,
-    /// ANP: 1 / Σ_{tets ∋ n} V_e per node (0 for nodes without tets).
+    /// ANP: 1 / Σ_{tets of group g} V_e per averaging group (0 for nodes without tets).
     pub anp_inv_vol: Vec<f64>,
+    /// ANP: the tet slots of each averaging group (`anp_ptr[g]..anp_ptr[g + 1]`), in the
+    /// order of their node's slots.
+    pub anp_slots: Vec<u32>,
+    pub anp_ptr: Vec<u32>,
     /// `tets` in blocks of four (structure of arrays) for the SIMD kernels; derived from
     /// `tets` and `solids`, padded at the end.
     pub tet_blocks: Vec<TetBlock>,
@@ -60,11 +64,14 @@ impl Elements {
             hexes: (hexes, hex_elem),
             element_ids,
         } = list;
+        let mut tets = tets;
+        let groups = anp_groups(&mut tets, nodes);
         let slots = SlotMap::new(nodes, &tets, &hexes);
-        let mut anp_vol = vec![0.0; nodes];
+        let (anp_slots, anp_ptr) = group_slots(&slots, &tets, nodes, groups);
+        let mut anp_vol = vec![0.0; groups];
         for t in &tets {
-            for &n in &t.nodes {
-                anp_vol[n as usize] += t.vol;
+            for &g in &t.anp {
+                anp_vol[g as usize] += t.vol;
             }
         }
         let anp_inv_vol = anp_vol.iter().map(|&v| if v > 0.0 { 1.0 / v } else { 0.0 }).collect();
@@ -80,6 +87,8 @@ impl Elements {
             element_ids,
             slots,
             anp_inv_vol,
+            anp_slots,
+            anp_ptr,
             tet_blocks,
             hex_blocks,
         }
@@ -93,6 +102,17 @@ impl Elements {
     /// Number of force slots (4 per tet, 8 per hex).
     pub(crate) fn slot_count(&self) -> usize {
         4 * self.tets.len() + 8 * self.hexes.len()
+    }
+
+    /// Number of T4ANP averaging groups (at least the node count).
+    pub(crate) fn anp_groups(&self) -> usize {
+        self.anp_inv_vol.len()
+    }
+
+    /// The tet slots of averaging group `g`.
+    #[inline(always)]
+    pub(crate) fn anp_slots(&self, g: usize) -> &[u32] {
+        &self.anp_slots[self.anp_ptr[g] as usize..self.anp_ptr[g + 1] as usize]
     }
 
     /// Whether the tetrahedra are T4ANP (and there are some).
@@ -128,4 +148,59 @@ impl Elements {
     pub(crate) fn hex_element(&self, i: usize) -> usize {
         self.hex_elem[i] as usize
     }
+}
+
+/// Sets the T4ANP averaging group of every tet corner and returns the number of groups. The
+/// volume ratio is averaged over the tets around a node of the same solid only: averaging
+/// across a material interface would mix the volume changes of two materials (a soft region
+/// next to a stiff one then takes part of the stiff one's constraint). Group `n` is node `n`
+/// with the solid of its first tet, so a one-solid mesh has one group per node, numbered as
+/// the nodes; a node shared by `k` solids has `k − 1` further groups after them.
+fn anp_groups(tets: &mut [Tet], nodes: usize) -> usize {
+    let mut first = vec![u32::MAX; nodes];
+    let mut extra: std::collections::BTreeMap<(u32, u32), u32> = Default::default();
+    let mut count = nodes as u32;
+    for t in tets.iter_mut() {
+        for c in 0..4 {
+            let n = t.nodes[c];
+            let solid = &mut first[n as usize];
+            if *solid == u32::MAX {
+                *solid = t.mat;
+            }
+            t.anp[c] = if *solid == t.mat {
+                n
+            } else {
+                *extra.entry((n, t.mat)).or_insert_with(|| {
+                    count += 1;
+                    count - 1
+                })
+            };
+        }
+    }
+    count as usize
+}
+
+/// The tet slots of each averaging group in the order of its node's slots (CSR).
+fn group_slots(slots: &SlotMap, tets: &[Tet], nodes: usize, groups: usize) -> (Vec<u32>, Vec<u32>) {
+    let group_of = |s: u32| tets[s as usize / 4].anp[s as usize % 4] as usize;
+    let mut count = vec![0u32; groups];
+    for n in 0..nodes {
+        for &s in slots.tet_slots(n) {
+            count[group_of(s)] += 1;
+        }
+    }
+    let mut ptr = vec![0u32; groups + 1];
+    for g in 0..groups {
+        ptr[g + 1] = ptr[g] + count[g];
+    }
+    let mut fill = ptr.clone();
+    let mut out = vec![0u32; ptr[groups] as usize];
+    for n in 0..nodes {
+        for &s in slots.tet_slots(n) {
+            let g = group_of(s);
+            out[fill[g] as usize] = s;
+            fill[g] += 1;
+        }
+    }
+    (out, ptr)
 }

@@ -95,8 +95,8 @@ impl Elements {
                     .for_each(|((blocks, jac), vj)| dispatch(Jacobians { blocks, upad, jac, vj }));
                 // Pass 2: nodal volume-weighted averages (fixed order per node).
                 let tvj: &[[f64; LANES]] = &ws.tvj;
-                ws.jnodal.par_iter_mut().enumerate().with_min_len(MIN_LEN).for_each(|(n, jn)| {
-                    *jn = nodal_ratio(self.slots.tet_slots(n), tvj, self.anp_inv_vol[n]);
+                ws.jnodal.par_iter_mut().enumerate().with_min_len(MIN_LEN).for_each(|(g, jn)| {
+                    *jn = nodal_ratio(self.anp_slots(g), tvj, self.anp_inv_vol[g]);
                 });
                 // Pass 3: J̄ and the forces.
                 let (jnodal, tjac): (&[f64], &[[f64; LANES]]) = (&ws.jnodal, &ws.tjac);

@@ -36,7 +36,7 @@ impl Elements {
         for (k, t) in self.tets.iter().enumerate() {
             let j = tjac(k);
             let jbar = if self.tet == TetFormulation::T4Anp {
-                0.25 * t.nodes.iter().map(|&n| jnodal[n as usize]).sum::<f64>()
+                0.25 * t.anp.iter().map(|&g| jnodal[g as usize]).sum::<f64>()
             } else {
                 j
             };

@@ -32,7 +32,7 @@ impl Elements {
         ReferenceWorkspace {
             slots: vec![Vector3::zeros(); self.slot_count()],
             jac: vec![0.0; self.tets.len() + self.hexes.len()],
-            jnodal: vec![0.0; self.nodes()],
+            jnodal: vec![0.0; self.anp_groups()],
         }
     }
 
@@ -72,16 +72,13 @@ impl Elements {
                     .for_each(|(jac, t)| *jac = tet_jacobian(u, t));
                 let tjac_ro: &[f64] = tjac;
                 let tets = &self.tets;
-                ws.jnodal.par_iter_mut().enumerate().with_min_len(MIN_LEN).for_each(|(n, jn)| {
+                ws.jnodal.par_iter_mut().enumerate().with_min_len(MIN_LEN).for_each(|(g, jn)| {
                     let mut acc = 0.0;
-                    for &s in self.slots.of(n) {
-                        let s = s as usize;
-                        if s < 4 * nt {
-                            let e = s / 4;
-                            acc += tets[e].vol * tjac_ro[e];
-                        }
+                    for &s in self.anp_slots(g) {
+                        let e = s as usize / 4;
+                        acc += tets[e].vol * tjac_ro[e];
                     }
-                    *jn = acc * self.anp_inv_vol[n];
+                    *jn = acc * self.anp_inv_vol[g];
                 });
                 let jnodal: &[f64] = &ws.jnodal;
                 tslots
@@ -90,7 +87,7 @@ impl Elements {
                     .zip(self.tets.par_iter())
                     .with_min_len(MIN_LEN)
                     .for_each(|((out, &j), t)| {
-                        let jbar = anp_jbar(jnodal, &t.nodes);
+                        let jbar = anp_jbar(jnodal, &t.anp);
                         let m = &self.solids[t.mat as usize].material;
                         if !t4anp_element(m, u, t, j, jbar, out) {
                             bad.store(true, Ordering::Relaxed);

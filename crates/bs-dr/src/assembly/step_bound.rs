@@ -86,9 +86,9 @@ impl Elements {
         // Summed per node in tet order: the same sums for any thread count.
         let mut nodal = vec![[0.0f64; 4]; self.anp_inv_vol.len()];
         for (t, c) in self.tets.iter().zip(&coefficients) {
-            for &n in &t.nodes {
+            for &g in &t.anp {
                 for k in 0..4 {
-                    nodal[n as usize][k] += c[k];
+                    nodal[g as usize][k] += c[k];
                 }
             }
         }
@@ -106,9 +106,9 @@ impl Elements {
         (a, n as usize)
     }
 
-    /// The lowest-index tet that has node `n`.
-    fn first_tet_of(&self, n: usize) -> usize {
-        self.tets.iter().position(|t| t.nodes.contains(&(n as u32))).unwrap_or(0)
+    /// The lowest-index tet of averaging group `g` (for one solid: of node `g`).
+    fn first_tet_of(&self, g: usize) -> usize {
+        self.tets.iter().position(|t| t.anp.contains(&(g as u32))).unwrap_or(0)
     }
 }
 

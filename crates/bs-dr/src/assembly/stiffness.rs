@@ -94,14 +94,14 @@ fn split_rows<'a>(ptr: &[u32], val: &'a mut [Matrix3<f64>]) -> Vec<&'a mut [Matr
 fn nodal_volumetric(elements: &Elements) -> RankOneSum {
     let n = elements.nodes();
     type Row = (f64, Vec<(u32, Vector3<f64>)>);
-    let rows: Vec<Row> = (0..n)
+    let rows: Vec<Row> = (0..elements.anp_groups())
         .into_par_iter()
         .with_min_len(128)
         .map(|r| {
             let mut vol = 0.0;
             let mut vk = 0.0;
             let mut entries: Vec<(u32, Vector3<f64>)> = Vec::new();
-            for &s in elements.slots.tet_slots(r) {
+            for &s in elements.anp_slots(r) {
                 let t = &elements.tets[s as usize / 4];
                 vol += t.vol;
                 vk += t.vol * elements.solids[t.mat as usize].material.elastic().kappa;

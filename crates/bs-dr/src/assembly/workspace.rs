@@ -41,7 +41,7 @@ impl Elements {
             tjac: vec![[0.0; LANES]; nb],
             tvj: vec![[0.0; LANES]; nb],
             hjac: vec![[0.0; LANES]; self.hex_blocks.len()],
-            jnodal: vec![0.0; self.nodes()],
+            jnodal: vec![0.0; self.anp_groups()],
         }
     }
 }

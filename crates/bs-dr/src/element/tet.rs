@@ -16,6 +16,9 @@ pub(crate) struct Tet {
     pub vol: f64,
     /// Reference shape-function gradients ∂N_a/∂X.
     pub g: [[f64; 3]; 4],
+    /// T4ANP: the nodal averaging group of each corner (its node, or another group where
+    /// the node also belongs to tets of another solid: see `assembly::elements`).
+    pub anp: [u32; 4],
 }
 
 impl Tet {
@@ -28,7 +31,7 @@ impl Tet {
         if vol.is_nan() || vol <= 1e-12 * scale * scale * scale {
             return Err(vol);
         }
-        Ok(Tet { nodes, mat, vol, g })
+        Ok(Tet { nodes, mat, vol, g, anp: nodes })
     }
 
     /// The element as every per-element loop sees it.

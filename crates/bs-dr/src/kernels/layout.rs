@@ -33,6 +33,8 @@ pub(crate) struct TetBlock {
     pub vol: [f64; LANES],
     /// Node indices: `nodes[a][l]`.
     pub nodes: [[u32; LANES]; 4],
+    /// T4ANP averaging groups of the corners: `anp[a][l]` (see `Tet::anp`).
+    pub anp: [[u32; LANES]; 4],
     /// The block's stress evaluation.
     pub law: BlockLaw,
 }
@@ -107,11 +109,13 @@ pub(crate) fn tet_blocks(tets: &[Tet], solids: &[Solid]) -> Vec<TetBlock> {
                 g: [[0.0; LANES]; 9],
                 vol: [0.0; LANES],
                 nodes: [[0; LANES]; 4],
+                anp: [[0; LANES]; 4],
                 law: BlockLaw::PerElement,
             };
             for (l, t) in chunk.iter().enumerate() {
                 for a in 0..4 {
                     b.nodes[a][l] = t.nodes[a];
+                    b.anp[a][l] = t.anp[a];
                 }
                 for a in 1..4 {
                     for k in 0..3 {
@@ -123,6 +127,7 @@ pub(crate) fn tet_blocks(tets: &[Tet], solids: &[Solid]) -> Vec<TetBlock> {
             for l in chunk.len()..LANES {
                 for a in 0..4 {
                     b.nodes[a][l] = b.nodes[a][0];
+                    b.anp[a][l] = b.anp[a][0];
                 }
             }
             b.law = block_law(chunk.iter().map(|t| t.mat), solids);

@@ -79,16 +79,17 @@ pub(crate) struct AnpForces<'a> {
     pub out: &'a mut [BlockForces],
 }
 
-/// `J̄ = ¼ (((J_n0 + J_n1) + J_n2) + J_n3)` of a block's lanes, in the scalar order.
+/// `J̄ = ¼ (((J_g0 + J_g1) + J_g2) + J_g3)` of a block's lanes (`g` the corners' averaging
+/// groups), in the scalar order.
 #[inline(always)]
 fn jbar_lanes<L: Lanes>(l: L, b: &TetBlock, jn: &[f64]) -> L::V {
     let mut jsum = l.splat(0.0);
-    for (a, nodes) in b.nodes.iter().enumerate() {
+    for (a, groups) in b.anp.iter().enumerate() {
         let ja = l.load([
-            jn[nodes[0] as usize],
-            jn[nodes[1] as usize],
-            jn[nodes[2] as usize],
-            jn[nodes[3] as usize],
+            jn[groups[0] as usize],
+            jn[groups[1] as usize],
+            jn[groups[2] as usize],
+            jn[groups[3] as usize],
         ]);
         jsum = if a == 0 { ja } else { l.add(jsum, ja) };
     }
@@ -135,7 +136,7 @@ impl AnpForces<'_> {
         for (lane, t) in self.tets.iter().skip(LANES * i).take(LANES).enumerate() {
             let mut fl = [Vector3::zeros(); 4];
             let m = &self.solids[t.mat as usize].material;
-            let jbar = reference::anp_jbar(jn, &t.nodes);
+            let jbar = reference::anp_jbar(jn, &t.anp);
             bad |= !reference::t4anp_element(m, self.u, t, jac[lane], jbar, &mut fl);
             put_lane(lane, &fl, out);
         }

@@ -102,23 +102,29 @@ fn simd_kernels_match_the_scalar_reference() {
     }
 }
 
-/// `J` (and for T4ANP `J̄`) of every element computed here from the reference data; the
-/// lowest element index with a value not > 0.
+/// `J` (and for T4ANP `J̄`, the nodal averages taken over the tets of the same solid) of
+/// every element computed here from the reference data; the lowest element index with a
+/// value not > 0.
 fn brute_force_first_inversion(m: &Model, u: &[Vector3<f64>]) -> Option<usize> {
     let tj: Vec<f64> =
         m.elements.tets.iter().map(|t| det3(&deformation_gradient(u, &t.nodes, &t.g))).collect();
-    let mut jn = vec![0.0; m.node_count()];
-    let mut vn = vec![0.0; m.node_count()];
+    // (node, solid) -> (Σ V J, Σ V)
+    let mut sums: std::collections::HashMap<(u32, u32), (f64, f64)> = Default::default();
     for (t, &j) in m.elements.tets.iter().zip(&tj) {
         for &n in &t.nodes {
-            jn[n as usize] += t.vol * j;
-            vn[n as usize] += t.vol;
+            let s = sums.entry((n, t.mat)).or_default();
+            s.0 += t.vol * j;
+            s.1 += t.vol;
         }
     }
     let anp = m.options.tet == TetFormulation::T4Anp;
     let mut bad: Vec<usize> = Vec::new();
     for (k, t) in m.elements.tets.iter().enumerate() {
-        let jbar = t.nodes.iter().map(|&n| jn[n as usize] / vn[n as usize]).sum::<f64>() / 4.0;
+        let nodal = |n: &u32| {
+            let (vj, v) = sums[&(*n, t.mat)];
+            vj / v
+        };
+        let jbar = t.nodes.iter().map(nodal).sum::<f64>() / 4.0;
         if tj[k] <= 0.0 || (anp && jbar <= 0.0) {
             bad.push(m.elements.tet_elem[k] as usize);
         }
@@ -178,6 +184,35 @@ fn forces_are_bit_identical_for_1_and_2_threads_with_mixed_laws() {
             for c in 0..3 {
                 assert_eq!(x[c].to_bits(), y[c].to_bits(), "{name}");
             }
+        }
+    }
+}
+
+/// T4ANP averaging groups: one per node on a one-solid mesh, numbered as the nodes (so its
+/// forces are those of the plain nodal average); on a mesh of two solids, one more per node
+/// that has tets of both, and every tet's corners in groups of its own solid.
+#[test]
+fn anp_groups_split_nodes_shared_by_two_solids() {
+    let mesh = jittered_box(3, true);
+    let one = model(&mesh, TetFormulation::T4Anp, false);
+    assert_eq!(one.elements.anp_groups(), one.node_count());
+    assert!(one.elements.tets.iter().all(|t| t.anp == t.nodes));
+    let two = model(&mesh, TetFormulation::T4Anp, true);
+    let mut solids_of = vec![std::collections::BTreeSet::new(); two.node_count()];
+    for t in &two.elements.tets {
+        for &n in &t.nodes {
+            solids_of[n as usize].insert(t.mat);
+        }
+    }
+    let extra: usize = solids_of.iter().map(|s| s.len().saturating_sub(1)).sum();
+    assert!(extra > 0, "the mixed model has interface nodes");
+    assert_eq!(two.elements.anp_groups(), two.node_count() + extra);
+    let mut group_solid = vec![None; two.elements.anp_groups()];
+    for t in &two.elements.tets {
+        for (&g, &n) in t.anp.iter().zip(&t.nodes) {
+            assert!(g as usize == n as usize || g as usize >= two.node_count());
+            let s = group_solid[g as usize].get_or_insert(t.mat);
+            assert_eq!(*s, t.mat, "group {g} mixes solids");
         }
     }
 }
