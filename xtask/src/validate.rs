@@ -63,19 +63,24 @@ fn solve(p: &Prepared, v: &Variant, what: &str) -> Result<Outcome, String> {
     v.solve(p).map_err(|e| format!("{what}: {e}"))
 }
 
+/// One row as `validate` prints it while measuring.
+fn print_row(r: &Row) {
+    println!(
+        "{:<46} {:<40} {:>11.3e} {:>10.1e} {:<3} {}",
+        r.case,
+        r.quantity,
+        r.value,
+        r.tolerance,
+        r.unit,
+        if r.pass() { "pass" } else { "FAIL" }
+    );
+}
+
 /// Runs the cases of `scope`, printing each row as it is measured.
 pub fn run(scope: Scope) -> Result<Vec<Row>, String> {
     let mut rows = Vec::new();
     let mut add = |r: Row| {
-        println!(
-            "{:<46} {:<40} {:>11.3e} {:>10.1e} {:<3} {}",
-            r.case,
-            r.quantity,
-            r.value,
-            r.tolerance,
-            r.unit,
-            if r.pass() { "pass" } else { "FAIL" }
-        );
+        print_row(&r);
         rows.push(r);
     };
     closed_forms(&mut add)?;
@@ -529,15 +534,7 @@ pub fn main(args: &[String]) -> Result<(), String> {
             // One CalculiX case alone, printed, docs/validation.md untouched.
             let mut failed = 0;
             let mut print = |r: Row| {
-                println!(
-                    "{:<46} {:<40} {:>11.3e} {:>10.1e} {:<3} {}",
-                    r.case,
-                    r.quantity,
-                    r.value,
-                    r.tolerance,
-                    r.unit,
-                    if r.pass() { "pass" } else { "FAIL" }
-                );
+                print_row(&r);
                 failed += usize::from(!r.pass());
             };
             calculix_without_contact_case(&mut print, case)?;
