@@ -11,33 +11,14 @@
 
 use std::collections::HashMap;
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
 
 use bs_material::Material;
 use bs_material::closed_form::confined_series_stretches;
 
-fn brainshift(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_brainshift")).args(args).output().expect("run brainshift")
-}
+mod common;
 
-/// A fresh temporary folder, removed on drop.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> TempDir {
-        let p = std::env::temp_dir().join(format!("bs-regions-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&p);
-        std::fs::create_dir_all(&p).unwrap();
-        TempDir(p)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+use common::{TempDir, brainshift};
 
 /// Reference lengths of the two bars (mm) and the layers of elements in each.
 const L1: f64 = 0.6;
@@ -243,7 +224,7 @@ fn two_materials_in_series_split_the_shortening_as_the_closed_form() {
         let homogeneous = -SHORTENING * L1 / (L1 + L2);
         assert!((exact_uz(L1, stretches) - homogeneous).abs() > 5e-3, "{name}: {stretches:?}");
         for element in ["t4", "t4anp", "h8"] {
-            let dir = TempDir::new(&format!("{name}-{element}"));
+            let dir = TempDir::new_in("regions", &format!("{name}-{element}"));
             let (u, nodes) = run_box(&dir.0, element, &t1, &t2, "");
             assert_eq!(u.len(), nodes.len());
             let (mut worst, mut interface) = (0.0f64, 0);
@@ -278,7 +259,7 @@ fn output_surface_of_a_region_is_its_deformed_boundary() {
     let [(_, [(t1, m1), (t2, m2)]), _] = pairs();
     let stretches = confined_series_stretches((&m1, L1), (&m2, L2), SHORTENING).unwrap();
     for element in ["t4", "h8"] {
-        let dir = TempDir::new(&format!("surface-{element}"));
+        let dir = TempDir::new_in("regions", &format!("surface-{element}"));
         let (_, nodes) = run_box(&dir.0, element, &t1, &t2, "[output]\nsurfaces = [\"FIRST\"]\n");
         let out = dir.0.join("out");
         // The first bar's boundary nodes: on the outer faces with z ≤ L₁, or on z = 0 or L₁.
@@ -335,7 +316,7 @@ fn output_surface_of_a_region_is_its_deformed_boundary() {
 /// name and the element sets the mesh has; `run` writes nothing.
 #[test]
 fn unknown_output_surface_is_refused_with_the_known_sets() {
-    let dir = TempDir::new("unknown-surface");
+    let dir = TempDir::new_in("regions", "unknown-surface");
     let (deck, _) = box_deck("h8");
     std::fs::write(dir.0.join("box.inp"), deck).unwrap();
     let [(_, [(t1, _), (t2, _)]), _] = pairs();

@@ -3,7 +3,7 @@
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 use serde_json::Value;
 
@@ -11,27 +11,9 @@ fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-fn brainshift(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_brainshift")).args(args).output().expect("run brainshift")
-}
+mod common;
 
-/// A fresh temporary folder, removed on drop.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> TempDir {
-        let p = std::env::temp_dir().join(format!("bs-run-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&p);
-        std::fs::create_dir_all(&p).unwrap();
-        TempDir(p)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+use common::{TempDir, brainshift};
 
 /// Runs a scene; returns report.json and the displacements by node id.
 fn run_scene(scene: &Path, out: &Path) -> (Value, HashMap<u64, [f64; 3]>) {
@@ -63,7 +45,7 @@ fn run_scene(scene: &Path, out: &Path) -> (Value, HashMap<u64, [f64; 3]>) {
 /// the result files agree with each other.
 fn assert_contact_scene(dir: &str, name: &str) {
     let scene = root().join("fixtures").join(dir).join("scene.toml");
-    let out = TempDir::new(name);
+    let out = TempDir::new_in("run", name);
     let (r, u) = run_scene(&scene, &out.0);
     assert_eq!(r["converged"], true);
     assert!(r["error_estimate"].as_f64().unwrap() < r["tolerance"].as_f64().unwrap());
@@ -169,7 +151,7 @@ fn bad_commands_fail_with_their_expected_message() {
     for line in table.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty()) {
         let (args, expect) =
             line.split_once('\t').unwrap_or_else(|| panic!("no tab in commands.txt line: {line}"));
-        let out = TempDir::new(&format!("bad-command-{cases}"));
+        let out = TempDir::new_in("run", &format!("bad-command-{cases}"));
         let args: Vec<String> =
             args.split_whitespace().map(|a| a.replace("{out}", out.0.to_str().unwrap())).collect();
         let o = Command::new(env!("CARGO_BIN_EXE_brainshift"))
@@ -191,7 +173,7 @@ fn bad_commands_fail_with_their_expected_message() {
 /// Zero is not a thread count: refused with a message, nothing written.
 #[test]
 fn zero_threads_are_refused() {
-    let dir = TempDir::new("zero-threads");
+    let dir = TempDir::new_in("run", "zero-threads");
     let scene = root().join("fixtures/cube/uniaxial-t4.toml");
     let out = dir.0.join("out");
     let o = brainshift(&[
@@ -217,7 +199,7 @@ fn an_interrupted_run_writes_nothing_and_says_where_it_stopped() {
     use std::io::BufRead;
     use std::process::{Command, Stdio};
     for signal in ["INT", "TERM"] {
-        let dir = TempDir::new(&format!("interrupted-{signal}"));
+        let dir = TempDir::new_in("run", &format!("interrupted-{signal}"));
         // The MNI152 scene with Dynamic Relaxation: thousands of steps, many seconds.
         let fixture = root().join("fixtures/mni152");
         let text = std::fs::read_to_string(fixture.join("scene.toml"))
@@ -268,7 +250,7 @@ fn an_interrupted_run_writes_nothing_and_says_where_it_stopped() {
 /// repeated runs (the force assembly gathers in a fixed order; no atomics in sums).
 #[test]
 fn displacements_are_identical_for_any_thread_count_and_every_run() {
-    let dir = TempDir::new("determinism");
+    let dir = TempDir::new_in("run", "determinism");
     let scene = root().join("fixtures/sphere-shell/scene.toml");
     let mut files = Vec::new();
     for (k, threads) in ["1", "2", "2", "1"].iter().enumerate() {
@@ -309,7 +291,7 @@ fn cube_uniaxial_compression_matches_the_closed_form() {
         .expect("bracketed");
     for element in ["t4", "t4anp", "h8"] {
         let scene = root().join(format!("fixtures/cube/uniaxial-{element}.toml"));
-        let dir = TempDir::new(&format!("uniaxial-{element}"));
+        let dir = TempDir::new_in("run", &format!("uniaxial-{element}"));
         let (_, u) = run_scene(&scene, &dir.0);
         let mesh = cube_mesh(element);
         let mut worst = 0.0f64;
@@ -333,7 +315,7 @@ fn cube_simple_shear_matches_the_closed_form() {
     let gamma = 0.2;
     for element in ["t4", "t4anp", "h8"] {
         let scene = root().join(format!("fixtures/cube/shear-{element}.toml"));
-        let dir = TempDir::new(&format!("shear-{element}"));
+        let dir = TempDir::new_in("run", &format!("shear-{element}"));
         let (_, u) = run_scene(&scene, &dir.0);
         let mesh = cube_mesh(element);
         let interior = mesh.nodes.len() - mesh.boundary().volume_node.len();
