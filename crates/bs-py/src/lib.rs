@@ -471,6 +471,51 @@ impl RunResult {
     }
 }
 
+impl RunResult {
+    /// This result as the registration outputs read it (mesh, displacements, frame, unit,
+    /// skull).
+    fn registration(&self, py: Python<'_>) -> PyResult<bs_scene::registration::RunResult> {
+        let guard = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        let (p, solved) = &*guard;
+        bs_scene::registration::RunResult::new(
+            &p.path,
+            p.mesh.clone(),
+            solved.solution.displacements.clone(),
+            p.scene.space.space(),
+            p.scene.units,
+        )
+        .map(|r| r.with_skull(p.skull.clone()))
+        .map_err(|e| scene_err(py, e))
+    }
+}
+
+/// A volume's values (`per_voxel` per voxel, i fastest) as a numpy array (nx, ny, nz) or
+/// (nx, ny, nz, per_voxel).
+fn volume_array<'py, T: numpy::Element + Copy>(
+    py: Python<'py>,
+    [nx, ny, nz]: [usize; 3],
+    data: Vec<T>,
+    per_voxel: usize,
+) -> PyResult<Bound<'py, PyAny>> {
+    let err = |e: numpy::ndarray::ShapeError| PyValueError::new_err(e.to_string());
+    if per_voxel == 1 {
+        let a = numpy::ndarray::Array3::from_shape_vec((nz, ny, nx), data).map_err(err)?;
+        let a = a.permuted_axes([2, 1, 0]).as_standard_layout().into_owned();
+        Ok(a.into_pyarray(py).into_any())
+    } else {
+        let a =
+            numpy::ndarray::Array4::from_shape_vec((nz, ny, nx, per_voxel), data).map_err(err)?;
+        let a = a.permuted_axes([2, 1, 0, 3]).as_standard_layout().into_owned();
+        Ok(a.into_pyarray(py).into_any())
+    }
+}
+
+/// A 4×4 matrix as a numpy array.
+fn affine<'py>(py: Python<'py>, m: &bs_mesh::nalgebra::Matrix4<f64>) -> Bound<'py, PyArray2<f64>> {
+    let rows: Vec<f64> = (0..4).flat_map(|i| (0..4).map(move |j| m[(i, j)])).collect();
+    Array2::from_shape_vec((4, 4), rows).expect("4 x 4").into_pyarray(py)
+}
+
 #[pymethods]
 impl RunResult {
     /// Nodal displacements, float64 (n, 3), in the order of `node_ids`.
@@ -511,6 +556,47 @@ impl RunResult {
         d.set_item("csv", written.csv)?;
         d.set_item("report", written.report)?;
         Ok(d)
+    }
+
+    /// The pre-operative image `image` (.nii, .nii.gz, .nrrd, .nhdr) warped into this
+    /// result's configuration, as `brainshift warp` computes it: `(array, affine)`, the array
+    /// (nx, ny, nz) on the image's grid (float32; uint32 labels with `labels=True`, nearest
+    /// voxel), `affine` the 4×4 voxel-index-to-RAS (mm) matrix.
+    #[pyo3(signature = (image, labels=false))]
+    fn warp<'py>(
+        &self,
+        py: Python<'py>,
+        image: PathBuf,
+        labels: bool,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray2<f64>>)> {
+        let result = self.registration(py)?;
+        if labels {
+            let v = py
+                .detach(|| bs_scene::registration::warp_labels_volume(&result, &image))
+                .map_err(|e| scene_err(py, e))?;
+            Ok((volume_array(py, v.grid.dims(), v.data, 1)?, affine(py, v.grid.voxel_to_world())))
+        } else {
+            let v = py
+                .detach(|| bs_scene::registration::warp_volume(&result, &image))
+                .map_err(|e| scene_err(py, e))?;
+            Ok((volume_array(py, v.grid.dims(), v.data, 1)?, affine(py, v.grid.voxel_to_world())))
+        }
+    }
+
+    /// The displacement field d(y) = X(y) − y on the grid of `reference`, as `brainshift
+    /// field` computes it: `(array, affine)`, the array float32 (nx, ny, nz, 3) of RAS
+    /// vectors in mm (zero beyond the skull), `affine` voxel index to RAS (mm).
+    fn field<'py>(
+        &self,
+        py: Python<'py>,
+        reference: PathBuf,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray2<f64>>)> {
+        let result = self.registration(py)?;
+        let v = py
+            .detach(|| bs_scene::registration::field_volume(&result, &reference))
+            .map_err(|e| scene_err(py, e))?;
+        let data: Vec<f32> = v.data.iter().flatten().copied().collect();
+        Ok((volume_array(py, v.grid.dims(), data, 3)?, affine(py, v.grid.voxel_to_world())))
     }
 
     fn __repr__(&self) -> String {

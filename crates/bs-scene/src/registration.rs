@@ -653,6 +653,31 @@ fn resample_and_write<T: Copy>(
     })
 }
 
+/// What [`warp_file`] computes, in memory: the pre-operative image `image` (NIfTI or NRRD)
+/// resampled into the configuration of `result`, on the image's grid (world frame RAS, mm).
+pub fn warp_volume(result: &RunResult, image: &Path) -> Result<Volume<f32>, SceneError> {
+    let (volume, _) = bs_image::formats::read_image(image).map_err(image_error)?;
+    let map = InverseMap::new(result, &volume.grid, Space::Ras, image)?;
+    let data = map.warp(&volume, &volume.data);
+    Ok(Volume { grid: volume.grid, data })
+}
+
+/// [`warp_volume`] for a labelmap (nearest voxel; a gap voxel never takes a brain label).
+pub fn warp_labels_volume(result: &RunResult, image: &Path) -> Result<Volume<u32>, SceneError> {
+    let (volume, _) = bs_image::formats::read_labels(image).map_err(image_error)?;
+    let map = InverseMap::new(result, &volume.grid, Space::Ras, image)?;
+    let data = map.warp_labels(&volume, &volume.data);
+    Ok(Volume { grid: volume.grid, data })
+}
+
+/// What [`field_file`] computes, in memory: d(y) = X(y) − y on the grid of `reference`, RAS
+/// vectors in mm (zero beyond the skull).
+pub fn field_volume(result: &RunResult, reference: &Path) -> Result<Volume<[f32; 3]>, SceneError> {
+    let (volume, _) = bs_image::formats::read_image(reference).map_err(image_error)?;
+    let map = InverseMap::new(result, &volume.grid, Space::Ras, reference)?;
+    Ok(Volume { grid: volume.grid, data: map.field() })
+}
+
 /// `brainshift field`: the result's inverse map as a displacement field d(y) = X(y) − y on
 /// the grid of `reference` (NIfTI or NRRD), written to `out`: `.nii`/`.nii.gz` (DISPVECT,
 /// RAS vectors), `.mha` or `.nrrd` (LPS, ITK's frame).
