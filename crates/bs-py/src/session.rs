@@ -34,6 +34,20 @@ fn scratch_dir() -> PathBuf {
     std::env::temp_dir().join(format!("brainshift-session-{}-{k}", std::process::id()))
 }
 
+/// `v` as a file path, or a pair of arrays that `write` puts in a scratch file.
+fn path_or_arrays(
+    v: &Bound<'_, PyAny>,
+    what: &str,
+    write: impl FnOnce(&Bound<'_, PyTuple>) -> PyResult<PathBuf>,
+) -> PyResult<PathBuf> {
+    match v.cast::<PyTuple>() {
+        Ok(t) if t.len() == 2 => write(t),
+        _ => v.extract::<PathBuf>().map_err(|_| {
+            PyValueError::new_err(format!("{what} must be a file path or a pair of arrays"))
+        }),
+    }
+}
+
 impl Session {
     /// The boundary loads of one `update` call.
     fn loads(
@@ -61,29 +75,32 @@ impl Session {
         }
         for (k, v) in surface.into_iter().flat_map(|d| d.iter()) {
             let name = key(k, "surface")?;
-            let path = match v.cast::<PyTuple>() {
-                Ok(t) if t.len() == 2 => self.write_surface(py, &name, t)?,
-                _ => v.extract::<PathBuf>().map_err(|_| {
-                    PyValueError::new_err(format!(
-                        "surface['{name}'] must be a path or (points (n, 3), triangles (m, 3))"
-                    ))
-                })?,
-            };
+            let path = path_or_arrays(&v, &format!("surface['{name}']"), |t| {
+                self.write_surface(py, &name, t)
+            })?;
             out.push((name, BoundaryLoad::Surface(path)));
         }
         for (k, v) in landmarks.into_iter().flat_map(|d| d.iter()) {
             let name = key(k, "landmarks")?;
-            let path = match v.cast::<PyTuple>() {
-                Ok(t) if t.len() == 2 => self.write_landmarks(py, &name, t)?,
-                _ => v.extract::<PathBuf>().map_err(|_| {
-                    PyValueError::new_err(format!(
-                        "landmarks['{name}'] must be a CSV path or (pre (m, 3), intra (m, 3))"
-                    ))
-                })?,
-            };
+            let path = path_or_arrays(&v, &format!("landmarks['{name}']"), |t| {
+                self.write_landmarks(py, &name, t)
+            })?;
             out.push((name, BoundaryLoad::Landmarks(path)));
         }
         Ok(out)
+    }
+
+    /// Writes the scratch file `file_name` with `write`; returns its path.
+    fn scratch_file(
+        &self,
+        file_name: &str,
+        write: impl FnOnce(&std::path::Path) -> std::io::Result<()>,
+    ) -> PyResult<PathBuf> {
+        let path = self.scratch.join(file_name);
+        std::fs::create_dir_all(&self.scratch).and_then(|()| write(&path)).map_err(|e| {
+            pyo3::exceptions::PyOSError::new_err(format!("{}: {e}", path.display()))
+        })?;
+        Ok(path)
     }
 
     /// Writes `(points, triangles)` as an OFF file in the scratch folder.
@@ -101,15 +118,9 @@ impl Session {
             points.into_iter().map(Point3::from).collect(),
             tris.into_iter().map(|t| [t[0], t[1], t[2]]).collect(),
         );
-        let path = self.scratch.join(format!("{name}-surface.off"));
-        std::fs::create_dir_all(&self.scratch)
-            .and_then(|()| {
-                bs_mesh::io::write_surface(&path, &surface).map_err(std::io::Error::other)
-            })
-            .map_err(|e| {
-                pyo3::exceptions::PyOSError::new_err(format!("{}: {e}", path.display()))
-            })?;
-        Ok(path)
+        self.scratch_file(&format!("{name}-surface.off"), |path| {
+            bs_mesh::io::write_surface(path, &surface).map_err(std::io::Error::other)
+        })
     }
 
     /// Writes `(pre, intra)` landmark pairs as the CSV the scene's `landmarks` key reads.
@@ -132,11 +143,7 @@ impl Session {
         for (a, b) in pre.iter().zip(&intra) {
             text += &format!("{:?},{:?},{:?},{:?},{:?},{:?}\n", a[0], a[1], a[2], b[0], b[1], b[2]);
         }
-        let path = self.scratch.join(format!("{name}-landmarks.csv"));
-        std::fs::create_dir_all(&self.scratch).and_then(|()| std::fs::write(&path, text)).map_err(
-            |e| pyo3::exceptions::PyOSError::new_err(format!("{}: {e}", path.display())),
-        )?;
-        Ok(path)
+        self.scratch_file(&format!("{name}-landmarks.csv"), |path| std::fs::write(path, text))
     }
 }
 

@@ -71,3 +71,18 @@ def test_a_refused_update_keeps_the_session(fixtures):
     # Still at the last good state: an update with the same load returns it unchanged.
     again = session.update(displacements={"ZMAX": [0.0, 0.0, -0.05]}).displacements
     assert np.abs(again - good).max() < 1e-8
+
+
+def test_surface_and_landmarks_given_as_arrays(fixtures):
+    session = Session(Scene.from_toml(fixtures / CUBE))
+    plane = (np.array([[-1.0, -1.0, 0.9], [2.0, -1.0, 0.9], [2.0, 2.0, 0.9], [-1.0, 2.0, 0.9]]),
+             np.array([[0, 1, 2], [0, 2, 3]]))
+    # The arrays reach the scene's surface loader; ZMAX prescribes only z, and a measured
+    # surface moves all three components, which an update may not change.
+    with pytest.raises(BrainshiftError, match="other components"):
+        session.update(surface={"ZMAX": plane})
+    with pytest.raises(ValueError, match="give pairs"):
+        session.update(landmarks={"ZMAX": (np.zeros((4, 3)), np.zeros((3, 3)))})
+    with pytest.raises(ValueError, match="file path or a pair of arrays"):
+        session.update(surface={"ZMAX": 3})
+    assert session.update().report["converged"]
