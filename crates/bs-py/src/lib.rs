@@ -24,6 +24,10 @@ use pyo3::exceptions::{PyException, PyOSError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 
+use crate::image::ImageArg;
+
+mod igtl;
+mod image;
 mod session;
 
 create_exception!(
@@ -43,6 +47,11 @@ fn raise(py: Python<'_>, kind: &str, message: String, write: bool) -> PyErr {
     let err = BrainshiftError::new_err(message);
     let _ = err.value(py).setattr("kind", kind);
     err
+}
+
+/// The Python exception of an image that cannot be read (BrainshiftError, kind "Image").
+fn image_error(py: Python<'_>, e: bs_image::ImageError) -> PyErr {
+    scene_err(py, bs_scene::registration::image_error(e))
 }
 
 fn scene_err(py: Python<'_>, e: SceneError) -> PyErr {
@@ -335,6 +344,18 @@ impl Scene {
         self.prepared.mesh.elements.len()
     }
 
+    /// The frame of the scene's mesh: "RAS" or "LPS".
+    #[getter]
+    fn space(&self) -> &'static str {
+        self.prepared.scene.space.space().name()
+    }
+
+    /// The length unit of the scene's mesh ("mm", "m", ...).
+    #[getter]
+    fn units(&self) -> &'static str {
+        self.prepared.scene.units.symbol()
+    }
+
     /// Everything a run does before solving (memory, composition, initial gap), as the
     /// dict of what `brainshift check` prints; raises BrainshiftError if the scene cannot
     /// run.
@@ -490,7 +511,9 @@ impl RunResult {
 }
 
 /// A volume's values (`per_voxel` per voxel, i fastest) as a numpy array (nx, ny, nz) or
-/// (nx, ny, nz, per_voxel).
+/// (nx, ny, nz, per_voxel), without a copy: the array is in Fortran order (i fastest), so
+/// `a.transpose()` is C-contiguous (nz, ny, nx), the (k, j, i) layout of OpenIGTLink and
+/// of ITK.
 fn volume_array<'py, T: numpy::Element + Copy>(
     py: Python<'py>,
     [nx, ny, nz]: [usize; 3],
@@ -500,15 +523,17 @@ fn volume_array<'py, T: numpy::Element + Copy>(
     let err = |e: numpy::ndarray::ShapeError| PyValueError::new_err(e.to_string());
     if per_voxel == 1 {
         let a = numpy::ndarray::Array3::from_shape_vec((nz, ny, nx), data).map_err(err)?;
-        let a = a.permuted_axes([2, 1, 0]).as_standard_layout().into_owned();
-        Ok(a.into_pyarray(py).into_any())
+        Ok(a.permuted_axes([2, 1, 0]).into_pyarray(py).into_any())
     } else {
         let a =
             numpy::ndarray::Array4::from_shape_vec((nz, ny, nx, per_voxel), data).map_err(err)?;
-        let a = a.permuted_axes([2, 1, 0, 3]).as_standard_layout().into_owned();
-        Ok(a.into_pyarray(py).into_any())
+        Ok(a.permuted_axes([2, 1, 0, 3]).into_pyarray(py).into_any())
     }
 }
+
+/// A surface as numpy arrays: points (k, 3), triangles (t, 3), the node of each point (k).
+type Surface<'py> =
+    (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<i64>>, Bound<'py, PyArray1<i64>>);
 
 /// A 4×4 matrix as a numpy array.
 fn affine<'py>(py: Python<'py>, m: &bs_mesh::nalgebra::Matrix4<f64>) -> Bound<'py, PyArray2<f64>> {
@@ -558,45 +583,99 @@ impl RunResult {
         Ok(d)
     }
 
-    /// The pre-operative image `image` (.nii, .nii.gz, .nrrd, .nhdr) warped into this
-    /// result's configuration, as `brainshift warp` computes it: `(array, affine)`, the array
-    /// (nx, ny, nz) on the image's grid (float32; uint32 labels with `labels=True`, nearest
-    /// voxel), `affine` the 4×4 voxel-index-to-RAS (mm) matrix.
+    /// The pre-operative image `image` (a path to .nii, .nii.gz, .nrrd, .nhdr, or a
+    /// `brainshift.Image` already read) warped into this result's configuration, as
+    /// `brainshift warp` computes it: `(array, affine)`, the array (nx, ny, nz) on the
+    /// image's grid (float32; uint32 labels with `labels=True`, nearest voxel, from a path
+    /// only), `affine` the 4×4 voxel-index-to-RAS (mm) matrix.
     #[pyo3(signature = (image, labels=false))]
     fn warp<'py>(
         &self,
         py: Python<'py>,
-        image: PathBuf,
+        image: &Bound<'py, PyAny>,
         labels: bool,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray2<f64>>)> {
         let result = self.registration(py)?;
-        if labels {
-            let v = py
-                .detach(|| bs_scene::registration::warp_labels_volume(&result, &image))
-                .map_err(|e| scene_err(py, e))?;
-            Ok((volume_array(py, v.grid.dims(), v.data, 1)?, affine(py, v.grid.voxel_to_world())))
-        } else {
-            let v = py
-                .detach(|| bs_scene::registration::warp_volume(&result, &image))
-                .map_err(|e| scene_err(py, e))?;
-            Ok((volume_array(py, v.grid.dims(), v.data, 1)?, affine(py, v.grid.voxel_to_world())))
-        }
+        let image = ImageArg::of(image)?;
+        let v = match (&image, labels) {
+            (ImageArg::File(p), true) => {
+                let v = py
+                    .detach(|| bs_scene::registration::warp_labels_volume(&result, p))
+                    .map_err(|e| scene_err(py, e))?;
+                let a = affine(py, v.grid.voxel_to_world());
+                return Ok((volume_array(py, v.grid.dims(), v.data, 1)?, a));
+            }
+            (ImageArg::Loaded(_), true) => {
+                return Err(PyValueError::new_err(
+                    "labels=True reads the labelmap itself: pass its path, not an Image",
+                ));
+            }
+            (ImageArg::Loaded(i), false) => py
+                .detach(|| bs_scene::registration::warp_loaded(&result, &i.volume, &i.path))
+                .map_err(|e| scene_err(py, e))?,
+            (ImageArg::File(p), false) => py
+                .detach(|| bs_scene::registration::warp_volume(&result, p))
+                .map_err(|e| scene_err(py, e))?,
+        };
+        Ok((volume_array(py, v.grid.dims(), v.data, 1)?, affine(py, v.grid.voxel_to_world())))
     }
 
-    /// The displacement field d(y) = X(y) − y on the grid of `reference`, as `brainshift
-    /// field` computes it: `(array, affine)`, the array float32 (nx, ny, nz, 3) of RAS
-    /// vectors in mm (zero beyond the skull), `affine` voxel index to RAS (mm).
+    /// The displacement field d(y) = X(y) − y on the grid of `reference` (a path or a
+    /// `brainshift.Image`), as `brainshift field` computes it: `(array, affine)`, the array
+    /// float32 (nx, ny, nz, 3) of RAS vectors in mm (zero beyond the skull), `affine`
+    /// voxel index to RAS (mm).
     fn field<'py>(
         &self,
         py: Python<'py>,
-        reference: PathBuf,
+        reference: &Bound<'py, PyAny>,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray2<f64>>)> {
         let result = self.registration(py)?;
+        let reference = ImageArg::of(reference)?;
+        let grid = reference.grid(py)?;
         let v = py
-            .detach(|| bs_scene::registration::field_volume(&result, &reference))
+            .detach(|| bs_scene::registration::field_on(&result, &grid, reference.path()))
             .map_err(|e| scene_err(py, e))?;
         let data: Vec<f32> = v.data.iter().flatten().copied().collect();
         Ok((volume_array(py, v.grid.dims(), data, 3)?, affine(py, v.grid.voxel_to_world())))
+    }
+
+    /// The inverse map of this result on the grid of `image` (a path or a
+    /// `brainshift.Image`), built once: `warp(...)` and `field()` from it cost a resample
+    /// each, what a live session does after every update.
+    fn inverse_map(&self, py: Python<'_>, image: &Bound<'_, PyAny>) -> PyResult<image::InverseMap> {
+        let result = self.registration(py)?;
+        let image = ImageArg::of(image)?;
+        let grid = image.grid(py)?;
+        let path = image.path().to_path_buf();
+        let map = py
+            .detach(|| {
+                bs_scene::registration::InverseMap::new(&result, &grid, bs_image::Space::Ras, &path)
+            })
+            .map_err(|e| scene_err(py, e))?;
+        Ok(image::InverseMap { map, grid })
+    }
+
+    /// The deformed boundary surface of the brain (every element's free faces, oriented
+    /// outwards) at X + u, in the scene's frame and unit: `(points (k, 3) float64,
+    /// triangles (t, 3) int64, node_index (k,) int64)`, node_index the 0-based node of each
+    /// point (rows of `displacements`).
+    fn surface<'py>(&self, py: Python<'py>) -> PyResult<Surface<'py>> {
+        let b = py.detach(|| {
+            let guard = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+            let (p, solved) = &*guard;
+            bs_scene::output::deformed_boundary(&p.mesh, &solved.solution.displacements)
+        });
+        let k = b.surface.vertices.len();
+        let t = b.surface.triangles.len();
+        let err = |e: numpy::ndarray::ShapeError| PyValueError::new_err(e.to_string());
+        let pts: Vec<f64> = b.surface.vertices.iter().flat_map(|p| [p.x, p.y, p.z]).collect();
+        let tris: Vec<i64> = b.surface.triangles.iter().flat_map(|t| t.map(|v| v as i64)).collect();
+        let nodes: Vec<i64> = b.volume_node.iter().map(|&n| n as i64).collect();
+        Ok((
+            Array2::from_shape_vec((k, 3), pts).map_err(err)?.into_pyarray(py),
+            Array2::from_shape_vec((t, 3), tris).map_err(err)?.into_pyarray(py),
+            PyArray1::from_vec(py, nodes),
+        ))
     }
 
     fn __repr__(&self) -> String {
@@ -818,6 +897,10 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Scene>()?;
     m.add_class::<RunResult>()?;
     m.add_class::<session::Session>()?;
+    m.add_class::<image::Image>()?;
+    m.add_class::<image::InverseMap>()?;
+    m.add_function(wrap_pyfunction!(image::read_image, m)?)?;
+    m.add_function(wrap_pyfunction!(igtl::crc64, m)?)?;
     m.add_function(wrap_pyfunction!(read_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(gap, m)?)?;
     m.add_function(wrap_pyfunction!(sweep_plan, m)?)?;

@@ -215,6 +215,13 @@ impl Session {
         Ok(nodes.into_iter().map(|n| ids[n]).collect())
     }
 
+    /// The node sets of the scene's boundaries that prescribe displacements: the keys
+    /// `update` takes.
+    fn prescribed_sets(&self) -> Vec<String> {
+        let s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        s.prescribed_sets().into_iter().map(str::to_string).collect()
+    }
+
     fn __repr__(&self) -> String {
         let s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
         format!(

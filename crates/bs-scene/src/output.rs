@@ -270,6 +270,13 @@ pub fn deformed_set_surface(mesh: &Mesh, set: &[usize], u: &[Vector3<f64>]) -> B
     }
 }
 
+/// The deformed boundary surface of the whole mesh ([`deformed_set_surface`] of every
+/// element): what a surgeon's view shows as the brain.
+pub fn deformed_boundary(mesh: &Mesh, u: &[Vector3<f64>]) -> BoundarySurface {
+    let all: Vec<usize> = (0..mesh.elements.len()).collect();
+    deformed_set_surface(mesh, &all, u)
+}
+
 /// Legacy VTK polydata of a deformed surface: points at `X + u`, triangles, and per point
 /// the node id (`node_id`, as in result.vtk) and the displacement. The title line carries
 /// `SPACE=` (3D Slicer's convention for legacy files).

@@ -546,7 +546,8 @@ pub struct Summary {
     pub notes: Vec<String>,
 }
 
-fn image_error(e: bs_image::ImageError) -> SceneError {
+/// The scene error of an image that cannot be read or used.
+pub fn image_error(e: bs_image::ImageError) -> SceneError {
     match e {
         bs_image::ImageError::Io { file, message }
         | bs_image::ImageError::Invalid { file, message } => SceneError::Image { file, message },
@@ -657,9 +658,19 @@ fn resample_and_write<T: Copy>(
 /// resampled into the configuration of `result`, on the image's grid (world frame RAS, mm).
 pub fn warp_volume(result: &RunResult, image: &Path) -> Result<Volume<f32>, SceneError> {
     let (volume, _) = bs_image::formats::read_image(image).map_err(image_error)?;
-    let map = InverseMap::new(result, &volume.grid, Space::Ras, image)?;
-    let data = map.warp(&volume, &volume.data);
-    Ok(Volume { grid: volume.grid, data })
+    warp_loaded(result, &volume, image)
+}
+
+/// [`warp_volume`] of an image already in memory (`source` names it in messages): what a
+/// live session does after each update.
+pub fn warp_loaded(
+    result: &RunResult,
+    volume: &Volume<f32>,
+    source: &Path,
+) -> Result<Volume<f32>, SceneError> {
+    let map = InverseMap::new(result, &volume.grid, Space::Ras, source)?;
+    let data = map.warp(volume, &volume.data);
+    Ok(Volume { grid: volume.grid.clone(), data })
 }
 
 /// [`warp_volume`] for a labelmap (nearest voxel; a gap voxel never takes a brain label).
@@ -674,8 +685,17 @@ pub fn warp_labels_volume(result: &RunResult, image: &Path) -> Result<Volume<u32
 /// vectors in mm (zero beyond the skull).
 pub fn field_volume(result: &RunResult, reference: &Path) -> Result<Volume<[f32; 3]>, SceneError> {
     let (volume, _) = bs_image::formats::read_image(reference).map_err(image_error)?;
-    let map = InverseMap::new(result, &volume.grid, Space::Ras, reference)?;
-    Ok(Volume { grid: volume.grid, data: map.field() })
+    field_on(result, &volume.grid, reference)
+}
+
+/// [`field_volume`] on a grid already in memory (`source` names it in messages).
+pub fn field_on(
+    result: &RunResult,
+    grid: &Grid,
+    source: &Path,
+) -> Result<Volume<[f32; 3]>, SceneError> {
+    let map = InverseMap::new(result, grid, Space::Ras, source)?;
+    Ok(Volume { grid: grid.clone(), data: map.field() })
 }
 
 /// `brainshift field`: the result's inverse map as a displacement field d(y) = X(y) − y on

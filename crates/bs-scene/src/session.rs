@@ -119,28 +119,23 @@ impl Session {
         }
     }
 
+    /// The node sets of the scene's boundaries that prescribe displacements (the keys
+    /// [`Session::update`] takes), in scene order.
+    pub fn prescribed_sets(&self) -> Vec<&str> {
+        let p = &self.run.prepared;
+        p.scene.boundaries.iter().filter(|b| moves(b)).filter_map(|b| b.nset.as_deref()).collect()
+    }
+
     /// The boundary whose node set is `name` and that prescribes displacements.
     fn boundary(&self, name: &str) -> Result<(usize, &Boundary), SceneError> {
         let p = &self.run.prepared;
-        let moves = |b: &Boundary| {
-            b.displacement.is_some()
-                || b.displacement_file.is_some()
-                || b.surface.is_some()
-                || b.landmarks.is_some()
-        };
         p.scene
             .boundaries
             .iter()
             .enumerate()
             .find(|(_, b)| b.nset.as_deref() == Some(name) && moves(b))
             .ok_or_else(|| {
-                let known: Vec<&str> = p
-                    .scene
-                    .boundaries
-                    .iter()
-                    .filter(|b| moves(b))
-                    .filter_map(|b| b.nset.as_deref())
-                    .collect();
+                let known = self.prescribed_sets();
                 SceneError::Set {
                     scene: p.path.clone(),
                     key: "update".into(),
@@ -219,6 +214,14 @@ impl Session {
         c.loads = loads;
         Ok(std::mem::replace(&mut self.run.prepared.prescribed, prescribed))
     }
+}
+
+/// Whether the boundary prescribes (possibly non-zero) displacements rather than fixing.
+fn moves(b: &Boundary) -> bool {
+    b.displacement.is_some()
+        || b.displacement_file.is_some()
+        || b.surface.is_some()
+        || b.landmarks.is_some()
 }
 
 /// An error about the one boundary of a single-boundary scene, keyed as the scene's

@@ -19,7 +19,7 @@ pub const ALLOWED: &[(&str, &[&str])] = &[
     ("bs-dr", &["bs-mesh", "bs-material"]),
     ("bs-scene", &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-image", "bs-meshgen"]),
     ("bs-cli", &["bs-mesh", "bs-dr", "bs-contact", "bs-scene", "bs-preview"]),
-    ("bs-py", &["bs-mesh", "bs-contact", "bs-scene"]),
+    ("bs-py", &["bs-mesh", "bs-contact", "bs-scene", "bs-image"]),
     (
         "xtask",
         &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-scene", "bs-image", "bs-meshgen"],
@@ -42,7 +42,8 @@ fn rule_for(from: &str, to: &str) -> &'static str {
         }
         ("bs-py", _) => {
             "bs-py is a front end like bs-cli: it calls bs-scene (and reads meshes and skulls \
-             with bs-mesh and bs-contact), so Python results are the command's"
+             with bs-mesh and bs-contact, images with bs-image), so Python results are the \
+             command's"
         }
         ("xtask", "bs-cli") => {
             "xtask drives bs-scene, as every front end does, not the binary's code"

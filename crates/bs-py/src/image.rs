@@ -1,0 +1,137 @@
+//! `brainshift.Image`: a pre-operative image read once and kept in memory (float32 on its
+//! grid), so that a live session warps it after every update without reading the file
+//! again. `Result.warp` and `Result.field` take one wherever they take a path.
+
+use std::path::{Path, PathBuf};
+
+use bs_image::{Grid, Volume};
+use numpy::PyArray2;
+use pyo3::prelude::*;
+
+use crate::{affine, image_error, volume_array};
+
+/// An image read into memory: its values (float32) on its grid, voxel index to RAS (mm).
+#[pyclass(module = "brainshift", frozen)]
+pub(crate) struct Image {
+    pub(crate) volume: Volume<f32>,
+    pub(crate) path: PathBuf,
+}
+
+#[pymethods]
+impl Image {
+    /// The grid's size (nx, ny, nz).
+    #[getter]
+    fn shape(&self) -> (usize, usize, usize) {
+        let [nx, ny, nz] = self.volume.grid.dims();
+        (nx, ny, nz)
+    }
+
+    /// The 4×4 voxel-index-to-RAS (mm) matrix.
+    #[getter]
+    fn affine<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        affine(py, self.volume.grid.voxel_to_world())
+    }
+
+    /// The file it was read from.
+    #[getter]
+    fn path(&self) -> PathBuf {
+        self.path.clone()
+    }
+
+    /// The values, float32 (nx, ny, nz).
+    fn array<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        volume_array(py, self.volume.grid.dims(), self.volume.data.clone(), 1)
+    }
+
+    fn __repr__(&self) -> String {
+        let [nx, ny, nz] = self.volume.grid.dims();
+        format!("<brainshift.Image {}: {nx} x {ny} x {nz}>", self.path.display())
+    }
+}
+
+/// A result's inverse map on an image grid (`Result.inverse_map`): the warped image and the
+/// displacement field from it without building it again.
+#[pyclass(module = "brainshift", frozen)]
+pub(crate) struct InverseMap {
+    pub(crate) map: bs_scene::registration::InverseMap,
+    pub(crate) grid: Grid,
+}
+
+#[pymethods]
+impl InverseMap {
+    /// The 4×4 voxel-index-to-RAS (mm) matrix of the grid.
+    #[getter]
+    fn affine<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        affine(py, self.grid.voxel_to_world())
+    }
+
+    /// The image (a `brainshift.Image`, on this grid) warped into the result's
+    /// configuration: float32 (nx, ny, nz), as `Result.warp`.
+    fn warp<'py>(&self, py: Python<'py>, image: &Bound<'py, Image>) -> PyResult<Bound<'py, PyAny>> {
+        let i = image.get();
+        if i.volume.grid != self.grid {
+            return Err(pyo3::exceptions::PyValueError::new_err(format!(
+                "{} is not on the grid of this map",
+                i.path.display()
+            )));
+        }
+        let data = py.detach(|| self.map.warp(&i.volume, &i.volume.data));
+        volume_array(py, self.grid.dims(), data, 1)
+    }
+
+    /// The displacement field d(y) = X(y) − y on the grid: float32 (nx, ny, nz, 3), RAS
+    /// mm, as `Result.field`.
+    fn field<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let data: Vec<f32> = py.detach(|| self.map.field().into_iter().flatten().collect());
+        volume_array(py, self.grid.dims(), data, 3)
+    }
+}
+
+/// Reads an image (.nii, .nii.gz, .nrrd, .nhdr) into memory, as `brainshift warp` reads
+/// its `--image`.
+#[pyfunction]
+pub(crate) fn read_image(py: Python<'_>, path: PathBuf) -> PyResult<Image> {
+    let (volume, _) =
+        py.detach(|| bs_image::formats::read_image(&path)).map_err(|e| image_error(py, e))?;
+    Ok(Image { volume, path })
+}
+
+/// An image argument: a loaded [`Image`] or a path to read.
+pub(crate) enum ImageArg<'a> {
+    Loaded(&'a Image),
+    File(PathBuf),
+}
+
+impl<'a> ImageArg<'a> {
+    pub(crate) fn of(v: &'a Bound<'_, PyAny>) -> PyResult<ImageArg<'a>> {
+        if let Ok(i) = v.cast::<Image>() {
+            return Ok(ImageArg::Loaded(i.get()));
+        }
+        v.extract::<PathBuf>().map(ImageArg::File).map_err(|_| {
+            pyo3::exceptions::PyValueError::new_err(
+                "image must be a path or a brainshift.Image (brainshift.read_image)",
+            )
+        })
+    }
+
+    /// The image's path (for messages).
+    pub(crate) fn path(&self) -> &Path {
+        match self {
+            ImageArg::Loaded(i) => &i.path,
+            ImageArg::File(p) => p,
+        }
+    }
+
+    /// The grid, reading the file if need be.
+    pub(crate) fn grid(&self, py: Python<'_>) -> PyResult<Grid> {
+        match self {
+            ImageArg::Loaded(i) => Ok(i.volume.grid.clone()),
+            ImageArg::File(p) => Ok(read(py, p)?.grid),
+        }
+    }
+}
+
+/// Reads `p` with the GIL released.
+pub(crate) fn read(py: Python<'_>, p: &Path) -> PyResult<Volume<f32>> {
+    py.detach(|| bs_image::formats::read_image(p)).map(|(v, _)| v).map_err(|e| image_error(py, e))
+}
