@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # CI for the Python bindings (crates/bs-py): a venv with maturin, pytest, numpy,
-# dask[distributed], meshio 5.3.5 and nibabel 5.3.2 (the mesh and image outputs read as users read them); the `brainshift` wheel built (release) and installed with the README's
+# dask[distributed], meshio 5.3.5 and nibabel 5.3.2 (the mesh and image outputs read as users read them), pyigtl 0.3.4 (the OpenIGTLink client that drives `brainshift serve`); the `brainshift` wheel built (release) and installed with the README's
 # one command (`pip install ./crates/bs-py`); the CLI for the comparisons; the
 # pytest suite (bit-identity with the CLI, errors, Dask sweeps, Slurm tasks by hand); and,
 # where the Slurm daemons can run (root, Debian's slurm-wlm), a real one-node Slurm
@@ -17,7 +17,7 @@ echo "== python venv ($venv)"
 # shellcheck disable=SC1091
 . "$venv/bin/activate"
 python -m pip install -q --upgrade pip
-python -m pip install -q maturin pytest numpy "dask[distributed]" "meshio==5.3.5" "nibabel==5.3.2"
+python -m pip install -q maturin pytest numpy "dask[distributed]" "meshio==5.3.5" "nibabel==5.3.2" "pyigtl==0.3.4"
 
 # The CLI to compare with: the debug build `cargo test --workspace` has just made in .ci/run
 # (a no-op here then; a release build would compile every dependency a second time for

@@ -18,27 +18,35 @@ measurement warm from the last one (same Result type):
 >>> r = session.update(displacements={"CRANIOTOMY": [0.0, 0.0, -4.0]})
 >>> session.reset()                       # back to the reference state
 
+In the operating room: ``python -m brainshift.serve SCENE --image PREOP`` (or
+``brainshift serve``) answers measurements sent over OpenIGTLink (3D Slicer) with the
+warped image; see :mod:`brainshift.serve`.
+
 Sweeps: :mod:`brainshift.sweep` (plan, run on Dask, collect, Slurm script).
 """
 
 from ._native import (
     BrainshiftError,
+    Image,
     Result,
     Scene,
     Session,
     __version__,
     gap,
+    read_image,
     read_mesh,
 )
 from . import sweep
 
 __all__ = [
     "BrainshiftError",
+    "Image",
     "Result",
     "Scene",
     "Session",
     "__version__",
     "gap",
+    "read_image",
     "read_mesh",
     "sweep",
 ]

@@ -1,0 +1,266 @@
+"""OpenIGTLink messages on the wire, for :mod:`brainshift.serve`.
+
+The message bodies are pyigtl's (the Perk Lab's OpenIGTLink library, used with 3D Slicer
+and PLUS): ``StringMessage``, ``PointMessage`` and ``ImageMessage`` pack and unpack their
+own content. Three things are done here instead, each because pyigtl 0.3.4 cannot do it
+for a server that must not die on its input:
+
+* reading a message off a socket, with the header checked (version 1 or 2, printable
+  ASCII type and device name), the body size bounded, the body read in full into one
+  buffer, and its CRC-64 verified (pyigtl's own reader does none of these);
+* the checksum itself, computed natively (``brainshift._native.crc64``; pyigtl's crcmod is
+  pure Python unless a compiler built its extension, seconds for one image);
+* unpacking POLYDATA (pyigtl's ``PolyDataMessage._unpack_content`` does not run).
+
+Frames: OpenIGTLink geometry here is RAS, millimetres (3D Slicer's world frame); images
+carry the RAS flag of the IMAGE header.
+"""
+
+from __future__ import annotations
+
+import socket
+import struct
+import time
+from dataclasses import dataclass
+from typing import Optional, Tuple
+
+import numpy as np
+
+from ._native import crc64
+
+HEADER = struct.Struct("> H 12s 20s I I Q Q")
+HEADER_SIZE = HEADER.size  # 58
+POLYDATA_HEADER = struct.Struct("> 10I")
+
+
+class ProtocolError(Exception):
+    """The byte stream cannot be read on (a bad header, an oversize or truncated body):
+    the connection is answered and closed."""
+
+
+class MessageError(Exception):
+    """One message that is refused (bad checksum, content or device): it is answered and
+    the connection goes on."""
+
+
+@dataclass
+class Header:
+    version: int
+    type: str
+    device: str
+    timestamp: float
+    body_size: int
+    crc: int
+
+    def fields(self) -> dict:
+        """The header as pyigtl's ``MessageBase.unpack`` takes it."""
+        return {
+            "header_version": self.version,
+            "message_type": self.type,
+            "device_name": self.device,
+            "timestamp": self.timestamp,
+            "body_size": self.body_size,
+        }
+
+    def __str__(self) -> str:
+        return f"{self.type} '{self.device}'"
+
+
+def _name(raw: bytes, what: str) -> str:
+    text = raw.rstrip(b"\0")
+    if b"\0" in text or any(c < 0x20 or c > 0x7E for c in text):
+        raise ProtocolError(
+            f"the header's {what} {raw!r} is not printable ASCII: this is not an "
+            "OpenIGTLink stream (or it lost its framing)"
+        )
+    return text.decode("ascii").strip()
+
+
+def parse_header(raw: bytes) -> Header:
+    version, typ, device, seconds, fraction, size, crc = HEADER.unpack(raw)
+    if version not in (1, 2):
+        raise ProtocolError(
+            f"header version {version}: OpenIGTLink 1 and 2 use 1, version 3 uses 2"
+        )
+    t = _name(typ, "message type")
+    if not t:
+        raise ProtocolError("the header's message type is empty")
+    return Header(version, t, _name(device, "device name"), seconds + fraction / 2**32, size, crc)
+
+
+def _recv_exactly(sock: socket.socket, n: int, what: str) -> Optional[bytearray]:
+    """``n`` bytes, or None if the peer closed before the first one."""
+    buf = bytearray(n)
+    view = memoryview(buf)
+    got = 0
+    while got < n:
+        k = sock.recv_into(view[got:], n - got)
+        if k == 0:
+            if got == 0:
+                return None
+            raise ProtocolError(f"{what} truncated: {got} of {n} bytes, then the client closed")
+        got += k
+    return buf
+
+
+def read_message(sock: socket.socket, max_body: int) -> Optional[Tuple[Header, bytes]]:
+    """The next message (header, body) on ``sock``; None when the client closed between
+    messages. Raises ProtocolError (framing lost) or socket errors/timeouts."""
+    raw = _recv_exactly(sock, HEADER_SIZE, "header")
+    if raw is None:
+        return None
+    h = parse_header(bytes(raw))
+    if h.body_size > max_body:
+        raise ProtocolError(
+            f"{h}: a body of {h.body_size} bytes exceeds the server's limit of {max_body} "
+            "bytes (--max-message-mb)"
+        )
+    body = _recv_exactly(sock, h.body_size, f"{h} body") if h.body_size else bytearray()
+    if body is None:
+        raise ProtocolError(f"{h}: the client closed before the body")
+    return h, bytes(body)
+
+
+def check_crc(h: Header, body: bytes) -> None:
+    c = crc64(body)
+    if c != h.crc:
+        raise MessageError(
+            f"{h}: CRC-64 of the body is {c:#018x}, the header says {h.crc:#018x} "
+            "(corrupted in transit?); message ignored"
+        )
+
+
+def content(h: Header, body: bytes) -> bytes:
+    """The message content: the body without the version-2 extended header and
+    metadata."""
+    if h.version == 1:
+        return body
+    if len(body) < 12:
+        raise MessageError(f"{h}: a version-2 body needs its 12-byte extended header")
+    ext, meta_header, meta_body, _ = struct.unpack("> H H I I", body[:12])
+    end = len(body) - meta_header - meta_body
+    if ext < 12 or end < ext:
+        raise MessageError(
+            f"{h}: extended header of {ext} bytes and metadata of {meta_header + meta_body} "
+            f"bytes do not fit a body of {len(body)} bytes"
+        )
+    return body[ext:end]
+
+
+def unpack_with(cls, h: Header, body: bytes):
+    """``body`` unpacked by the pyigtl message class ``cls``."""
+    m = cls()
+    try:
+        m.unpack(h.fields(), body)
+    except Exception as e:  # pyigtl raises struct, Unicode, value errors on bad bytes
+        raise MessageError(f"{h}: the body cannot be read as {h.type} ({e})") from None
+    return m
+
+
+def points_of(m, h: Header) -> np.ndarray:
+    """The positions of a pyigtl PointMessage as an (n, 3) float64 array."""
+    p = np.asarray(m.positions, dtype=np.float64).reshape(-1, 3)
+    if len(p) == 0:
+        raise MessageError(f"{h}: no points")
+    if not np.isfinite(p).all():
+        raise MessageError(f"{h}: point {int(np.flatnonzero(~np.isfinite(p).all(1))[0]) + 1} is not finite")
+    return p
+
+
+def _cells(raw: bytes, count: int, what: str, h: Header) -> list:
+    """Cells (lists of point indices) of a POLYDATA cell array: each a count N, then N
+    indices (uint32, big-endian)."""
+    a = np.frombuffer(raw, dtype=">u4")
+    cells = []
+    i = 0
+    while i < len(a):
+        n = int(a[i])
+        if i + 1 + n > len(a):
+            raise MessageError(f"{h}: {what} cell {len(cells) + 1} runs past its array")
+        cells.append(a[i + 1 : i + 1 + n])
+        i += 1 + n
+    if len(cells) != count:
+        raise MessageError(f"{h}: {what}: the header says {count} cells, the array holds {len(cells)}")
+    return cells
+
+
+def unpack_polydata(h: Header, body: bytes) -> Tuple[np.ndarray, np.ndarray]:
+    """Points (n, 3) float64 and triangles (m, 3) int64 of a POLYDATA message: polygons
+    fanned into triangles, triangle strips split; vertices, lines and attributes ignored."""
+    c = content(h, body)
+    if len(c) < POLYDATA_HEADER.size:
+        raise MessageError(f"{h}: shorter than the 40-byte POLYDATA header")
+    npts, _nv, sv, _nl, sl, npoly, spoly, nstrip, sstrip, _na = POLYDATA_HEADER.unpack_from(c)
+    at = POLYDATA_HEADER.size
+    need = at + 12 * npts + sv + sl + spoly + sstrip
+    if need > len(c):
+        raise MessageError(
+            f"{h}: the header announces {need} bytes of points and cells, the body has {len(c)}"
+        )
+    points = np.frombuffer(c, dtype=">f4", count=3 * npts, offset=at).reshape(-1, 3)
+    points = points.astype(np.float64)
+    at += 12 * npts + sv + sl
+    tris = []
+    flat = np.frombuffer(c[at : at + spoly], dtype=">u4")
+    if spoly == 16 * npoly and (flat[0::4] == 3).all():  # triangles only (Slicer's models)
+        tris.append(flat.reshape(-1, 4)[:, 1:].astype(np.int64))
+    else:
+        for cell in _cells(c[at : at + spoly], npoly, "polygons", h):
+            tris.append([(cell[0], cell[k], cell[k + 1]) for k in range(1, len(cell) - 1)])
+    at += spoly
+    for cell in _cells(c[at : at + sstrip], nstrip, "triangle strips", h):
+        tris.append(
+            [
+                (cell[k], cell[k + 1], cell[k + 2]) if k % 2 == 0 else (cell[k + 1], cell[k], cell[k + 2])
+                for k in range(len(cell) - 2)
+            ]
+        )
+    t = np.concatenate([np.asarray(x, dtype=np.int64).reshape(-1, 3) for x in tris] or [np.zeros((0, 3), np.int64)])
+    if len(t) == 0:
+        raise MessageError(f"{h}: no triangles (polygons or triangle strips) to measure with")
+    if t.max() >= npts:
+        raise MessageError(f"{h}: a cell refers to point {int(t.max())}, there are {npts}")
+    if not np.isfinite(points).all():
+        raise MessageError(f"{h}: a point is not finite")
+    return points, t
+
+
+def pack(message, timestamp: Optional[float] = None) -> bytes:
+    """A pyigtl message as OpenIGTLink bytes (header version 1), as ``message.pack()``
+    writes them, with the native checksum."""
+    body = message._pack_content()
+    t = time.time() if timestamp is None else timestamp
+    seconds = int(t)
+    fraction = min(int((t - seconds) * 2**32), 2**32 - 1)
+    header = HEADER.pack(
+        1,
+        message.message_type.encode("ascii"),
+        message.device_name.encode("ascii"),
+        seconds,
+        fraction,
+        len(body),
+        crc64(body),
+    )
+    return header + body
+
+
+class TriangleMesh:
+    """An outgoing POLYDATA message of triangles (no vertices, lines, strips or
+    attributes), packed with numpy (pyigtl's ``PolyDataMessage`` counts cells in a Python
+    loop; the bytes are the same)."""
+
+    message_type = "POLYDATA"
+
+    def __init__(self, points: np.ndarray, triangles: np.ndarray, device_name: str):
+        self.points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        self.triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+        self.device_name = device_name
+
+    def _pack_content(self) -> bytes:
+        t = self.triangles
+        cells = np.empty((len(t), 4), dtype=">u4")
+        cells[:, 0] = 3
+        cells[:, 1:] = t
+        n = len(self.points)
+        head = POLYDATA_HEADER.pack(n, 0, 0, 0, 0, len(t), 16 * len(t), 0, 0, 0)
+        return head + np.ascontiguousarray(self.points, dtype=">f4").tobytes() + cells.tobytes()

@@ -1,0 +1,380 @@
+"""``python -m brainshift.serve``: brain shift over OpenIGTLink, for 3D Slicer and
+navigation systems.
+
+The server prepares a live :class:`brainshift.Session` of a scene and reads the
+pre-operative image once, then listens. Each intra-operative measurement a client sends
+is solved warm from the last good state and answered, to that client, with:
+
+* IMAGE ``WarpedImage``: the pre-operative image warped into the new configuration, on
+  its own grid (float32, IJK-to-RAS matrix);
+* IMAGE ``DisplacementField``: d(y) = X(y) − y on that grid, 3 components, RAS mm (a grid
+  transform's displacement: where each intra-operative voxel came from);
+* POLYDATA ``DeformedBrain``: the deformed brain surface, RAS mm;
+* STRING ``Report``: the run's report as JSON (the keys of report.json).
+
+Measurements (geometry in RAS, mm, Slicer's world frame; converted to the scene's frame
+and unit):
+
+* POLYDATA ``IntraopSurface``: the measured exposed brain surface (triangles), as the
+  scene's ``surface`` load: each node of the boundary moves to its closest point on it;
+* POINT ``PreopLandmarks`` then POINT ``IntraopLandmarks``: landmark pairs (paired by name
+  when both lists carry the same unique names, else by order), as a ``landmarks`` load;
+  the pre-operative list is kept for later intra-operative ones;
+* STRING ``Displacements``: CSV ``node_id,ux,uy,uz`` with a header line, one row per node
+  of the set, in the scene's frame and unit, as ``displacement_file``.
+
+A refused message, a load the solver cannot carry, or a result that fails verification is
+answered with STRING ``Error`` (the text the command line prints) and the session stays at
+its last good state. A stream that cannot be read on (bad header, oversize or truncated
+body) is answered, then that connection is closed; the server goes on.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import socket
+import sys
+import threading
+import time
+from typing import Callable, Dict, Iterable, Iterator, List, Optional
+
+import numpy as np
+
+from . import igtl
+from ._native import BrainshiftError, Scene, Session, read_image
+
+DEFAULT_PORT = 18944
+UNIT_MM = {"mm": 1.0, "m": 1000.0}
+
+
+def _pyigtl():
+    try:
+        import pyigtl
+    except ImportError:
+        sys.exit(
+            "brainshift serve needs pyigtl (the OpenIGTLink library): "
+            "pip install 'brainshift[serve]' or pip install pyigtl"
+        )
+    return pyigtl
+
+
+class Frame:
+    """RAS millimetres (the wire) to and from the scene's frame and unit."""
+
+    def __init__(self, space: str, units: str):
+        self.flip = np.array([-1.0, -1.0, 1.0]) if space == "LPS" else np.ones(3)
+        self.mm = UNIT_MM[units]
+
+    def to_scene(self, ras_mm: np.ndarray) -> np.ndarray:
+        return ras_mm * self.flip / self.mm
+
+    def to_ras(self, scene: np.ndarray) -> np.ndarray:
+        return scene * self.mm * self.flip
+
+
+class Brainshift:
+    """The session, the image, and what a measurement becomes: one update at a time."""
+
+    def __init__(self, scene: str, image: str, set_name: Optional[str], threads: Optional[int],
+                 field: bool = True, log: Callable[[str], None] = print):
+        self.log = log
+        started = time.perf_counter()
+        s = Scene.from_toml(scene)
+        self.frame = Frame(s.space, s.units)
+        self.session = Session(s, threads=threads)
+        self.image = read_image(image)
+        sets = self.session.prescribed_sets()
+        if set_name is None:
+            if len(sets) != 1:
+                raise BrainshiftError(
+                    f"{scene}: the scene prescribes {len(sets)} node sets ({', '.join(sets) or 'none'}); "
+                    "name the one measurements move with --set"
+                )
+            set_name = sets[0]
+        elif set_name not in sets:
+            raise BrainshiftError(
+                f"{scene}: --set {set_name}: not a prescribed node set of the scene "
+                f"(prescribed: {', '.join(sets) or 'none'})"
+            )
+        self.set_name = set_name
+        self.set_ids = np.asarray(self.session.set_nodes(set_name), dtype=np.int64)
+        self.field = field
+        self.preop_landmarks: Dict[int, tuple] = {}
+        self.lock = threading.Lock()
+        self.prepare_seconds = time.perf_counter() - started
+
+    # -- measurements ------------------------------------------------------------------
+    def measurement(self, client: int, h: igtl.Header, body: bytes) -> Optional[dict]:
+        """The update a message asks for (keyword arguments of Session.update), None for a
+        message that only stores something; raises MessageError."""
+        pyigtl = _pyigtl()
+        key = (h.type, h.device)
+        if key == ("POLYDATA", "IntraopSurface"):
+            points, tris = igtl.unpack_polydata(h, body)
+            self.log(f"  {h}: {len(points)} points, {len(tris)} triangles")
+            return {"surface": {self.set_name: (self.frame.to_scene(points), tris)}}
+        if key == ("POINT", "PreopLandmarks"):
+            m = igtl.unpack_with(pyigtl.PointMessage, h, body)
+            self.preop_landmarks[client] = (igtl.points_of(m, h), list(m.names))
+            self.log(f"  {h}: {len(m.names)} pre-operative landmarks kept")
+            return None
+        if key == ("POINT", "IntraopLandmarks"):
+            m = igtl.unpack_with(pyigtl.PointMessage, h, body)
+            intra, names = igtl.points_of(m, h), list(m.names)
+            if client not in self.preop_landmarks:
+                raise igtl.MessageError(f"{h}: send POINT 'PreopLandmarks' first (the pairs' pre-operative positions)")
+            pre, pre_names = self.preop_landmarks[client]
+            pre, intra = pair_landmarks(pre, pre_names, intra, names, h)
+            self.log(f"  {h}: {len(intra)} landmark pairs")
+            return {"landmarks": {self.set_name: (self.frame.to_scene(pre), self.frame.to_scene(intra))}}
+        if key == ("STRING", "Displacements"):
+            m = igtl.unpack_with(pyigtl.StringMessage, h, body)
+            d = displacements_of_csv(m.string, self.set_ids, h)
+            self.log(f"  {h}: {len(d)} node displacements")
+            return {"displacements": {self.set_name: d}}
+        raise igtl.MessageError(
+            f"{h}: not a measurement this server takes; it takes POLYDATA 'IntraopSurface', "
+            "POINT 'PreopLandmarks' + 'IntraopLandmarks', or STRING 'Displacements'"
+        )
+
+    def update(self, loads: dict) -> Iterator[bytes]:
+        """Solves (one update at a time), then yields the replies as bytes, each computed
+        just before it is sent: WarpedImage first (what the surgeon waits for), then
+        DisplacementField, DeformedBrain and Report. Raises BrainshiftError before the
+        first reply (the session keeps its last good state)."""
+        pyigtl = _pyigtl()
+        t0 = time.perf_counter()
+        with self.lock:
+            r = self.session.update(**loads)
+        solved = time.perf_counter()
+
+        def replies():
+            m = r.inverse_map(self.image)
+            warped = m.warp(self.image)
+            ras = m.affine  # voxel index -> RAS (mm)
+            yield igtl.pack(pyigtl.ImageMessage(warped.T, ijk_to_world_matrix=ras, world_coordinate_system="ras",
+                                                device_name="WarpedImage"))
+            t_image = time.perf_counter()
+            if self.field:
+                f = m.field().transpose(2, 1, 0, 3)
+                yield igtl.pack(pyigtl.ImageMessage(f, ijk_to_world_matrix=ras, world_coordinate_system="ras",
+                                                    device_name="DisplacementField"))
+            points, tris, _ = r.surface()
+            yield igtl.pack(igtl.TriangleMesh(self.frame.to_ras(points), tris, "DeformedBrain"))
+            report = dict(r.report, serve={"solve_seconds": solved - t0, "image_seconds": t_image - solved})
+            yield igtl.pack(pyigtl.StringMessage(json.dumps(report), device_name="Report"))
+            self.log(
+                f"  solved in {solved - t0:.2f} s ({report['steps']} Newton, {report['linear_iterations']} GMRES, "
+                f"max displacement {report['max_displacement']:.2f} {report['units']}); WarpedImage packed "
+                f"{t_image - solved:.2f} s later"
+            )
+
+        return replies()
+
+
+def pair_landmarks(pre, pre_names, intra, names, h):
+    """Landmark pairs: by name when both lists have the same unique non-empty names, else
+    by order (then the counts must agree)."""
+    if all(pre_names) and all(names) and len(set(names)) == len(names) and set(names) == set(pre_names) \
+            and len(set(pre_names)) == len(pre_names):
+        order = [pre_names.index(n) for n in names]
+        return pre[order], intra
+    if len(pre) != len(intra):
+        raise igtl.MessageError(
+            f"{h}: {len(intra)} intra-operative landmarks for {len(pre)} pre-operative ones "
+            "(pairs are matched by name when both lists have the same names, else by order)"
+        )
+    return pre, intra
+
+
+def displacements_of_csv(text: str, set_ids: np.ndarray, h) -> np.ndarray:
+    """(n, 3) displacements in set order from CSV rows ``node_id,ux,uy,uz`` (header line
+    first), one per node of the set."""
+    index = {int(i): k for k, i in enumerate(set_ids)}
+    d = np.full((len(set_ids), 3), np.nan)
+    for line_no, line in enumerate(text.splitlines(), start=1):
+        line = line.strip()
+        if line_no == 1 or not line:
+            continue
+        f = [x.strip() for x in line.split(",")]
+        try:
+            if len(f) != 4:
+                raise ValueError
+            node, u = int(f[0]), [float(x) for x in f[1:]]
+            if not np.isfinite(u).all():
+                raise ValueError
+        except ValueError:
+            raise igtl.MessageError(f"{h} line {line_no}: expected node_id,ux,uy,uz with numbers, found '{line}'") from None
+        if node not in index:
+            raise igtl.MessageError(f"{h} line {line_no}: node {node} is not in the measured node set")
+        d[index[node]] = u
+    missing = np.flatnonzero(np.isnan(d[:, 0]))
+    if len(missing):
+        raise igtl.MessageError(
+            f"{h}: {len(missing)} nodes of the set have no row (first: node {int(set_ids[missing[0]])}); "
+            "every node of the set needs one"
+        )
+    return d
+
+
+class Server:
+    """The listening socket and one thread per client; updates one at a time."""
+
+    def __init__(self, brainshift: Brainshift, host: str = "127.0.0.1", port: int = DEFAULT_PORT,
+                 max_message_bytes: int = 64 << 20, log: Callable[[str], None] = print):
+        self.bs = brainshift
+        self.log = log
+        self.max_body = max_message_bytes
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self.sock.bind((host, port))
+        self.sock.listen(8)
+        self.sock.settimeout(0.2)
+        self.address = self.sock.getsockname()
+        self.stopping = threading.Event()
+        self.clients: Dict[int, socket.socket] = {}
+        self.threads: List[threading.Thread] = []
+        self.next_client = 1
+
+    def serve_forever(self) -> None:
+        while not self.stopping.is_set():
+            try:
+                conn, peer = self.sock.accept()
+            except socket.timeout:
+                continue
+            except OSError:
+                break
+            k = self.next_client
+            self.next_client += 1
+            self.clients[k] = conn
+            t = threading.Thread(target=self._client, args=(k, conn, peer), daemon=True)
+            self.threads.append(t)
+            t.start()
+
+    def stop(self) -> None:
+        self.stopping.set()
+        self.sock.close()
+        for c in list(self.clients.values()):
+            try:
+                c.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+        for t in self.threads:
+            t.join(timeout=30)
+
+    def _client(self, k: int, conn: socket.socket, peer) -> None:
+        name = f"client {k} ({peer[0]}:{peer[1]})"
+        self.log(f"{name} connected")
+        conn.settimeout(None)
+        try:
+            self._serve(k, conn, name)
+        finally:
+            self.clients.pop(k, None)
+            self.bs.preop_landmarks.pop(k, None)
+            conn.close()
+            self.log(f"{name} disconnected")
+
+    def _send(self, conn: socket.socket, data: Iterable[bytes]) -> bool:
+        try:
+            for d in data:
+                conn.sendall(d)
+            return True
+        except OSError as e:
+            self.log(f"  could not send the reply ({e}); the client is gone")
+            return False
+        except Exception as e:  # a reply that cannot be made: say so, keep serving
+            return self._error(conn, f"could not make the reply: {e}")
+
+    def _error(self, conn: socket.socket, text: str) -> bool:
+        self.log(f"  error: {text}")
+        m = _pyigtl().StringMessage(text, device_name="Error")
+        return self._send(conn, [igtl.pack(m)])
+
+    def _serve(self, k: int, conn: socket.socket, name: str) -> None:
+        while not self.stopping.is_set():
+            try:
+                msg = igtl.read_message(conn, self.max_body)
+            except igtl.ProtocolError as e:
+                self._error(conn, f"{e}; closing the connection")
+                return
+            except OSError:
+                return
+            if msg is None:
+                return
+            h, body = msg
+            started = time.perf_counter()
+            self.log(f"{name}: {h.type} '{h.device}', {h.body_size} bytes")
+            try:
+                igtl.check_crc(h, body)
+                if h.type.startswith(("GET_", "STT_", "STP_", "RTS_")) or h.type == "STATUS":
+                    self.log("  query or status message: nothing to do")
+                    continue
+                loads = self.bs.measurement(k, h, body)
+                if loads is None:
+                    continue
+                replies = self.bs.update(loads)
+            except igtl.MessageError as e:
+                if not self._error(conn, str(e)):
+                    return
+                continue
+            except BrainshiftError as e:
+                if not self._error(conn, f"{e}; the session keeps its last good state"):
+                    return
+                continue
+            except Exception as e:  # never die on input: report and go on
+                if not self._error(conn, f"internal error on {h}: {type(e).__name__}: {e}"):
+                    return
+                continue
+            if not self._send(conn, replies):
+                return
+            self.log(f"  replied in {time.perf_counter() - started:.2f} s")
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    p = argparse.ArgumentParser(
+        prog="brainshift serve",
+        description="Serve brain-shift updates over OpenIGTLink (3D Slicer's OpenIGTLinkIF, "
+        "PLUS, navigation systems): each intra-operative measurement is solved warm from the "
+        "last one and answered with the warped image, the displacement field, the deformed "
+        "brain surface and the report. Geometry on the wire is RAS, mm.",
+    )
+    p.add_argument("scene", help="scene file (.toml), e.g. fixtures/mni152/scene.toml")
+    p.add_argument("--image", required=True, help="pre-operative image to warp (.nii, .nii.gz, .nrrd)")
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1, this machine only)")
+    p.add_argument("--port", type=int, default=DEFAULT_PORT, help=f"TCP port (default {DEFAULT_PORT}, OpenIGTLink's)")
+    p.add_argument("--set", dest="set_name", help="node set the measurements move (default: the scene's only prescribed one)")
+    p.add_argument("--threads", type=int, help="solver threads (default: all cores)")
+    p.add_argument("--no-field", action="store_true", help="do not send the DisplacementField image")
+    p.add_argument("--max-message-mb", type=float, default=64.0, help="largest message accepted (default 64 MB)")
+    a = p.parse_args(argv)
+    log = lambda s: print(s, flush=True)  # noqa: E731
+    _pyigtl()
+    log(f"preparing {a.scene} and reading {a.image} ...")
+    try:
+        bs = Brainshift(a.scene, a.image, a.set_name, a.threads, field=not a.no_field, log=log)
+        server = Server(bs, a.host, a.port, int(a.max_message_mb * (1 << 20)), log=log)
+    except (BrainshiftError, ValueError, OSError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    log(
+        f"prepared in {bs.prepare_seconds:.2f} s: {bs.image.shape[0]}x{bs.image.shape[1]}x{bs.image.shape[2]} "
+        f"image, measurements move node set {bs.set_name} ({len(bs.set_ids)} nodes)"
+    )
+    log(f"listening on {server.address[0]}:{server.address[1]} (OpenIGTLink); Ctrl-C stops")
+    # Ctrl-C stops the server even when the shell started it with SIGINT ignored.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, lambda *_: server.stopping.set())
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    log("stopping ...")
+    server.stop()
+    log("stopped")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

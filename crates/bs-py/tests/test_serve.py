@@ -1,0 +1,368 @@
+"""`python -m brainshift.serve` driven over loopback by an independent OpenIGTLink client
+(pyigtl, the Perk Lab's library) and by raw sockets for what pyigtl cannot send (mutated,
+truncated, oversize messages).
+
+The server runs as its own process on the ellipsoid scene (coarse mesh, 0.2 s per
+update) with fixtures/registration/preop.nii.gz as the pre-operative image. Expectations
+come from the same update solved in this process (a Session's first update starts from the
+reference state, as the server's does: the same library calls, so the same numbers), from
+`brainshift warp` of that result read back with nibabel, and from result.vtu read with
+meshio and its boundary found here with numpy."""
+
+import os
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+pyigtl = pytest.importorskip("pyigtl")
+
+from brainshift import Scene, Session, igtl, read_image, read_mesh  # noqa: E402
+
+SCENE = "ellipsoid/scene.toml"
+IMAGE = "registration/preop.nii.gz"
+
+
+class _PolyData(pyigtl.PolyDataMessage):
+    """pyigtl 0.3.4 cannot unpack POLYDATA (its ``_unpack_content`` indexes a Struct):
+    points and triangle polygons read here, from the OpenIGTLink 2 specification."""
+
+    def _unpack_content(self, content):
+        n = struct.unpack_from(">10I", content)
+        self.points = np.frombuffer(content, ">f4", 3 * n[0], 40).reshape(-1, 3).astype(float)
+        at = 40 + 12 * n[0] + n[2] + n[4]
+        cells = np.frombuffer(content, ">u4", n[6] // 4, at).reshape(-1, 4)
+        assert (cells[:, 0] == 3).all()
+        self.polygons = cells[:, 1:].astype(np.int64)
+
+
+pyigtl.messages.message_type_to_class_constructor["POLYDATA"] = _PolyData
+
+
+def boundary_faces(tets):
+    """Faces (sorted node triples) that belong to one tetrahedron only."""
+    f = np.concatenate([tets[:, [0, 1, 2]], tets[:, [0, 1, 3]], tets[:, [0, 2, 3]], tets[:, [1, 2, 3]]])
+    f = np.sort(f, axis=1)
+    u, count = np.unique(f, axis=0, return_counts=True)
+    return u[count == 1]
+
+
+@pytest.fixture(scope="module")
+def ellipsoid():
+    from conftest import FIXTURES
+
+    m = read_mesh(FIXTURES / "ellipsoid" / "brain-coarse.inp")
+    crani = set(m["node_sets"]["CRANIOTOMY"].tolist())
+    faces = boundary_faces(m["elements"])
+    patch = faces[[all(v in crani for v in f) for f in faces]]
+    used, tris = np.unique(patch, return_inverse=True)
+    m["patch"] = (m["nodes"][used], tris.reshape(-1, 3))  # the craniotomy's exposed surface
+    return m
+
+
+def surface_message(ellipsoid, dz):
+    """The exposed surface moved dz mm along z (RAS; the scene is RAS, mm)."""
+    pts, tris = ellipsoid["patch"]
+    flat = np.hstack([np.full((len(tris), 1), 3), tris]).ravel()
+    return pyigtl.PolyDataMessage(points=pts + [0.0, 0.0, dz], polygons=flat, device_name="IntraopSurface")
+
+
+class ServerProcess:
+    def __init__(self, fixtures, *extra, program=(sys.executable, "-m", "brainshift.serve")):
+        cmd = [*program, str(fixtures / SCENE), "--image", str(fixtures / IMAGE), "--port", "0",
+               "--threads", "1", *extra]
+        env = dict(os.environ, BRAINSHIFT_PYTHON=sys.executable)
+        self.p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+        self.lines = []
+        while True:
+            line = self.p.stdout.readline()
+            assert line, "server exited: " + "".join(self.lines)
+            self.lines.append(line)
+            if line.startswith("listening on "):
+                self.port = int(line.split()[2].split(":")[1])
+                break
+        import threading
+
+        threading.Thread(target=self._drain, daemon=True).start()
+
+    def _drain(self):
+        for line in self.p.stdout:
+            self.lines.append(line)
+
+    def alive(self):
+        return self.p.poll() is None
+
+    def stop(self):
+        if self.alive():
+            self.p.send_signal(signal.SIGINT)
+            return self.p.wait(timeout=60)
+        return self.p.returncode
+
+
+@pytest.fixture(scope="module")
+def server():
+    from conftest import FIXTURES
+
+    s = ServerProcess(FIXTURES)
+    yield s
+    s.stop()
+
+
+def client(port):
+    c = pyigtl.OpenIGTLinkClient("127.0.0.1", port)
+    t = time.time()
+    while not c.is_connected():
+        assert time.time() - t < 10, "no connection"
+        time.sleep(0.01)
+    return c
+
+
+def replies(c, names=("WarpedImage", "DisplacementField", "DeformedBrain", "Report"), timeout=60):
+    return {n: c.wait_for_message(n, timeout=timeout) for n in names}
+
+
+def raw(port, data, shut=True, timeout=30):
+    """Sends bytes on a fresh connection; the messages the server sends back until it
+    closes (or `timeout`)."""
+    s = socket.create_connection(("127.0.0.1", port))
+    s.settimeout(timeout)
+    s.sendall(data)
+    if shut:
+        s.shutdown(socket.SHUT_WR)
+    out = []
+    try:
+        while True:
+            m = igtl.read_message(s, 1 << 30)
+            if m is None:
+                break
+            out.append(m)
+    except (igtl.ProtocolError, OSError):
+        pass
+    s.close()
+    return out
+
+
+def error_text(h, body):
+    assert (h.type, h.device) == ("STRING", "Error")
+    return igtl.unpack_with(pyigtl.StringMessage, h, body).string
+
+
+def test_packing_equals_pyigtl_and_the_checksum_its_crcmod():
+    m = pyigtl.StringMessage("brain shift", device_name="Report", timestamp=1234.5)
+    assert igtl.pack(m, timestamp=1234.5) == m.pack()
+    img = np.arange(24, dtype=np.float32).reshape(2, 3, 4)
+    m = pyigtl.ImageMessage(img, ijk_to_world_matrix=np.diag([2.0, 1.0, 1.5, 1.0]),
+                            world_coordinate_system="ras", device_name="WarpedImage", timestamp=7.25)
+    assert igtl.pack(m, timestamp=7.25) == m.pack()
+    pts = np.random.default_rng(1).normal(size=(5, 3))
+    tris = np.array([[0, 1, 2], [2, 3, 4]])
+    mine = igtl.TriangleMesh(pts, tris, "DeformedBrain")
+    theirs = pyigtl.PolyDataMessage(points=pts, polygons=np.hstack([[[3]] * 2, tris]).ravel(),
+                                    device_name="DeformedBrain", timestamp=3.0)
+    assert igtl.pack(mine, timestamp=3.0) == theirs.pack()
+    h = igtl.parse_header(theirs.pack()[:58])
+    p, t = igtl.unpack_polydata(h, theirs.pack()[58:])
+    assert np.allclose(p, pts, atol=1e-6) and np.array_equal(t, tris)
+
+
+def test_a_surface_measurement_returns_the_warped_image_field_surface_and_report(
+        server, ellipsoid, fixtures, cli, tmp_path):
+    import meshio
+    import nibabel
+
+    c = client(server.port)
+    c.send_message(surface_message(ellipsoid, -4.0), wait=True)
+    got = replies(c)
+    c.stop()
+    assert all(got.values()), server.lines
+
+    # The same measurement solved here, from the reference state as the server's first
+    # (the points as the wire carries them: float32).
+    pts, tris = ellipsoid["patch"]
+    session = Session(Scene.from_toml(fixtures / SCENE), threads=1)
+    sent = (pts + [0.0, 0.0, -4.0]).astype(np.float32).astype(np.float64)
+    r = session.update(surface={"CRANIOTOMY": (sent, tris)})
+    report = got["Report"]
+    import json
+
+    rep = json.loads(report.string)
+    assert rep["converged"] and rep["max_displacement"] == r.report["max_displacement"]
+
+    # WarpedImage: the warp of this result (bit-identical), and `brainshift warp` of it
+    # (the CLI writes int16 like its input: within half a unit).
+    expected, affine = r.warp(fixtures / IMAGE)
+    w = got["WarpedImage"]
+    assert w.world_coordinate_system == "ras"
+    assert np.array_equal(w.image, expected.T)
+    assert np.allclose(w.ijk_to_world_matrix, affine, atol=1e-4)  # float32 matrix on the wire
+    r.write(tmp_path / "run")
+    o = cli("warp", "--image", fixtures / IMAGE, "--result", tmp_path / "run", "--out", tmp_path / "w.nii.gz")
+    assert o.returncode == 0, o.stderr
+    img = nibabel.load(tmp_path / "w.nii.gz")
+    assert np.abs(w.image.T - img.get_fdata()).max() <= 0.5 + 1e-3
+    assert np.allclose(w.ijk_to_world_matrix, img.affine, atol=1e-4)
+    assert np.abs(w.image.T - nibabel.load(fixtures / IMAGE).get_fdata()).max() > 50  # it moved
+
+    field, _ = r.field(fixtures / IMAGE)
+    f = got["DisplacementField"]
+    assert f.image.shape == expected.T.shape + (3,)
+    assert np.array_equal(f.image, field.transpose(2, 1, 0, 3))
+    assert 3.0 < np.linalg.norm(f.image, axis=-1).max() < 6.0
+
+    # DeformedBrain: the deformed boundary of the result mesh (float32 on the wire), outward.
+    vtu = meshio.read(tmp_path / "run" / "result.vtk")  # meshio 5.3.5 rejects the .vtu's String array
+    x = vtu.points + vtu.point_data["displacement"]
+    tets = vtu.cells_dict["tetra"]
+    b = got["DeformedBrain"]
+    node = np.array([np.argmin(np.linalg.norm(x - p, axis=1)) for p in b.points])
+    assert np.abs(x[node] - b.points).max() < 1e-4
+    assert {tuple(t) for t in np.sort(node[b.polygons], axis=1)} == {tuple(t) for t in boundary_faces(tets)}
+    p0, p1, p2 = (b.points[b.polygons[:, k]] for k in range(3))
+    enclosed = np.einsum("ij,ij->", p0, np.cross(p1, p2)) / 6.0
+    a, bb, cc, d = (x[tets[:, k]] for k in range(4))
+    volume = np.abs(np.einsum("ij,ij->i", bb - a, np.cross(cc - a, d - a))).sum() / 6.0
+    assert enclosed == pytest.approx(volume, rel=1e-5)
+
+
+def test_landmarks_and_displacements_measure_the_same_uniform_shift(server, ellipsoid, fixtures):
+    session = Session(Scene.from_toml(fixtures / SCENE), threads=1)
+    expected = session.update(displacements={"CRANIOTOMY": [0.0, 0.0, -2.0]}).surface()[0]
+
+    c = client(server.port)
+    rng = np.random.default_rng(3)
+    corners = np.array([[x, y, z] for x in (-90, 90) for y in (-75, 75) for z in (-65, 65)], float)
+    pre = corners + rng.uniform(-5, 5, size=(8, 3))  # around the whole brain
+    names = [f"L{k}" for k in range(8)]
+    c.send_message(pyigtl.PointMessage(pre, names=names, device_name="PreopLandmarks"), wait=True)
+    # Sent in another order: paired by name.
+    order = rng.permutation(8)
+    c.send_message(pyigtl.PointMessage(pre[order] + [0, 0, -2.0], names=[names[k] for k in order],
+                                       device_name="IntraopLandmarks"), wait=True)
+    b = c.wait_for_message("DeformedBrain", timeout=60)
+    assert b is not None, "".join(server.lines[-10:])
+    assert np.abs(b.points - expected).max() < 1e-3  # the solver's tolerance, float32 points
+
+    crani = ellipsoid["node_ids"][ellipsoid["node_sets"]["CRANIOTOMY"]]
+    csv = "node_id,ux,uy,uz\n" + "".join(f"{i},0,0,-2\n" for i in crani[::-1])
+    c.send_message(pyigtl.StringMessage(csv, device_name="Displacements"), wait=True)
+    b = c.wait_for_message("DeformedBrain", timeout=60)
+    c.stop()
+    assert np.abs(b.points - expected).max() < 1e-3
+
+
+def test_refused_measurements_are_answered_and_the_session_keeps_its_state(server, ellipsoid):
+    c = client(server.port)
+    c.send_message(surface_message(ellipsoid, -3.0), wait=True)
+    good = c.wait_for_message("DeformedBrain", timeout=60)
+    assert good is not None
+
+    bad = [
+        (surface_message(ellipsoid, -40.0), "max_distance"),  # farther than the scene allows
+        (pyigtl.PointMessage([[0, 0, 0]] * 3, device_name="IntraopLandmarks"), "'PreopLandmarks' first"),
+        (pyigtl.StringMessage("node_id,ux,uy,uz\n1,0,0,x\n", device_name="Displacements"), "line 2"),
+        (pyigtl.TransformMessage(np.eye(4), device_name="Tool"), "not a measurement"),
+    ]
+    for message, text in bad:
+        c.send_message(message, wait=True)
+        e = c.wait_for_message("Error", timeout=60)
+        assert e is not None and text in e.string, (text, e and e.string)
+
+    # The same measurement again: already at that state, the same surface comes back.
+    c.send_message(surface_message(ellipsoid, -3.0), wait=True)
+    again = c.wait_for_message("DeformedBrain", timeout=60)
+    c.stop()
+    assert np.abs(again.points - good.points).max() < 1e-3
+    assert server.alive()
+
+
+def test_fuzzed_streams_never_stop_the_server(server, ellipsoid):
+    valid = igtl.pack(surface_message(ellipsoid, -1.0))
+    text = igtl.pack(pyigtl.StringMessage("node_id,ux,uy,uz\n", device_name="Displacements"))
+    rng = np.random.default_rng(7)
+    answered = 0
+    for k in range(60):
+        data = bytearray(valid if (k // 6) % 2 else text)  # each kind on both messages
+        kind = k % 6
+        if kind == 0:  # flipped bytes anywhere (header or body)
+            for i in rng.integers(0, len(data), size=3):
+                data[i] ^= int(rng.integers(1, 256))
+        elif kind == 1:  # truncated
+            data = data[: int(rng.integers(1, len(data)))]
+        elif kind == 2:  # the body changed, the checksum fixed: the content reader's turn
+            body = bytearray(data[58:])
+            for i in rng.integers(0, len(body), size=2):
+                body[i] = int(rng.integers(0, 256))
+            data = data[:50] + struct.pack(">Q", igtl.crc64(bytes(body))) + body
+        elif kind == 3:  # an unknown type
+            data[2:14] = b"FOO\0\0\0\0\0\0\0\0\0"
+        elif kind == 4:  # an oversize body announced
+            data[42:50] = struct.pack(">Q", 1 << 40)
+        else:  # garbage
+            data = bytearray(rng.integers(0, 256, size=int(rng.integers(1, 200)), dtype=np.uint8).tobytes())
+        out = raw(server.port, bytes(data))
+        answered += len(out)
+        assert server.alive(), f"mutation {k} ({kind}) stopped the server:\n" + "".join(server.lines[-20:])
+    assert answered >= 30  # most mutations get an Error (a truncated header gets none)
+
+    # Two valid messages back to back on one connection still work after all that.
+    out = raw(server.port, igtl.pack(surface_message(ellipsoid, -1.0)) + igtl.pack(surface_message(ellipsoid, -2.0)))
+    assert [h.device for h, _ in out].count("WarpedImage") == 2
+
+
+def test_a_client_leaving_mid_update_and_two_clients_at_once(server, ellipsoid):
+    s = socket.create_connection(("127.0.0.1", server.port))
+    s.sendall(igtl.pack(surface_message(ellipsoid, -2.5)))
+    s.close()  # gone before the answer
+    a, b = client(server.port), client(server.port)
+    a.send_message(surface_message(ellipsoid, -3.5), wait=False)
+    b.send_message(surface_message(ellipsoid, -1.5), wait=False)
+    ra = a.wait_for_message("WarpedImage", timeout=120)
+    rb = b.wait_for_message("WarpedImage", timeout=120)
+    a.stop()
+    b.stop()
+    assert ra is not None and rb is not None
+    assert server.alive()
+
+
+def test_ctrl_c_stops_the_server_cleanly(fixtures, ellipsoid):
+    s = ServerProcess(fixtures)
+    c = client(s.port)  # a client still connected
+    assert s.stop() == 0
+    c.stop()
+    time.sleep(0.2)
+    assert any(line.startswith("stopped") for line in s.lines), s.lines
+
+
+def test_brainshift_serve_runs_the_same_server(fixtures, cli, ellipsoid):
+    s = ServerProcess(fixtures, program=(cli.path, "serve"))
+    assert any(line.startswith("prepared in ") for line in s.lines)
+    c = client(s.port)
+    c.send_message(surface_message(ellipsoid, -2.0), wait=True)
+    assert c.wait_for_message("WarpedImage", timeout=60) is not None
+    c.stop()
+    assert s.stop() == 0
+
+
+def test_a_scene_without_the_set_or_image_is_refused_before_listening(fixtures, tmp_path):
+    base = [sys.executable, "-m", "brainshift.serve", str(fixtures / SCENE)]
+    o = subprocess.run(base + ["--image", str(tmp_path / "none.nii.gz")], capture_output=True, text=True)
+    assert o.returncode == 1 and "none.nii.gz" in o.stderr, o.stderr
+    o = subprocess.run(base + ["--image", str(fixtures / IMAGE), "--set", "FIXED"], capture_output=True, text=True)
+    assert o.returncode == 1 and "--set FIXED" in o.stderr and "CRANIOTOMY" in o.stderr, o.stderr
+
+
+def test_image_read_once_warps_as_the_file(fixtures):
+    r = Session(Scene.from_toml(fixtures / SCENE), threads=1).update(
+        displacements={"CRANIOTOMY": [0.0, 0.0, -3.0]})
+    image = read_image(fixtures / IMAGE)
+    a, affine_a = r.warp(image)
+    b, affine_b = r.warp(fixtures / IMAGE)
+    assert np.array_equal(a, b) and np.array_equal(affine_a, affine_b)
+    m = r.inverse_map(image)
+    assert np.array_equal(m.warp(image), a) and np.array_equal(m.field(), r.field(image)[0])
+    assert image.shape == a.shape and np.array_equal(image.affine, m.affine)
