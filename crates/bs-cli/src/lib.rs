@@ -10,6 +10,7 @@ pub mod gap;
 pub mod inspect;
 pub mod mesh;
 pub mod run;
+pub mod serve;
 pub mod sweep;
 pub mod warp;
 

@@ -1,6 +1,6 @@
 //! `brainshift`: brain shift computation for image-guided neurosurgery.
 
-use bs_cli::{check, demo, field, gap, inspect, mesh, run, sweep, warp};
+use bs_cli::{check, demo, field, gap, inspect, mesh, run, serve, sweep, warp};
 use bs_scene::scene;
 
 use std::path::PathBuf;
@@ -164,6 +164,39 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Serves brain-shift updates over OpenIGTLink (3D Slicer's OpenIGTLinkIF, PLUS,
+    /// navigation systems): prepares a live session of SCENE and reads IMAGE once, then
+    /// answers each measurement (POLYDATA IntraopSurface, POINT PreopLandmarks +
+    /// IntraopLandmarks, or STRING Displacements) with IMAGE WarpedImage, IMAGE
+    /// DisplacementField, POLYDATA DeformedBrain and STRING Report; errors as STRING Error.
+    /// Geometry on the wire: RAS, mm. Runs the Python package's server (`python3 -m
+    /// brainshift.serve`; BRAINSHIFT_PYTHON names another interpreter), which needs `pip
+    /// install ./crates/bs-py pyigtl`.
+    Serve {
+        /// The scene file (TOML).
+        scene: PathBuf,
+        /// The pre-operative image to warp (.nii, .nii.gz, .nrrd), in the scene's world.
+        #[arg(long)]
+        image: PathBuf,
+        /// Address to listen on (127.0.0.1: this machine only).
+        #[arg(long, default_value = "127.0.0.1")]
+        host: String,
+        /// TCP port (18944: OpenIGTLink's; 0: any free port, printed).
+        #[arg(long, default_value_t = 18944)]
+        port: u16,
+        /// The prescribed node set the measurements move (default: the scene's only one).
+        #[arg(long)]
+        set: Option<String>,
+        /// Solver threads (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Do not send the DisplacementField image.
+        #[arg(long)]
+        no_field: bool,
+        /// Largest message accepted, MB.
+        #[arg(long, default_value_t = 64.0)]
+        max_message_mb: f64,
+    },
     /// Parameter sweeps: plan one scene per row from a sweep file, run rows (anywhere, in
     /// any order, idempotently), collect one table, or emit a Slurm array job.
     #[command(subcommand)]
@@ -286,6 +319,18 @@ fn main() -> ExitCode {
                 GapAlgorithm::BruteForce => scene::Algorithm::BruteForce,
             };
             query.and_then(|q| gap::run(&skull, &q, algorithm, out.as_deref()))
+        }
+        Command::Serve { scene, image, host, port, set, threads, no_field, max_message_mb } => {
+            serve::run(&serve::ServeOptions {
+                scene,
+                image,
+                host,
+                port,
+                set,
+                threads,
+                no_field,
+                max_message_mb,
+            })
         }
         Command::Sweep(c) => match c {
             SweepCommand::Plan { sweep, out } => sweep::plan(&sweep, &out),

@@ -1,0 +1,92 @@
+//! `brainshift serve`: the OpenIGTLink server lives in the Python package (on pyigtl, the
+//! OpenIGTLink library used with 3D Slicer and PLUS), next to the live `Session` it drives;
+//! this command starts it with the same options (`python3 -m brainshift.serve`, or the
+//! interpreter named by BRAINSHIFT_PYTHON).
+
+use std::path::PathBuf;
+use std::process::{Command, ExitCode};
+
+/// The options of `python -m brainshift.serve`, forwarded as given.
+#[derive(Debug)]
+pub struct ServeOptions {
+    pub scene: PathBuf,
+    pub image: PathBuf,
+    pub host: String,
+    pub port: u16,
+    pub set: Option<String>,
+    pub threads: Option<usize>,
+    pub no_field: bool,
+    pub max_message_mb: f64,
+}
+
+impl ServeOptions {
+    /// The server's command-line arguments.
+    pub fn args(&self) -> Vec<String> {
+        let mut a = vec![
+            "-m".into(),
+            "brainshift.serve".into(),
+            self.scene.display().to_string(),
+            "--image".into(),
+            self.image.display().to_string(),
+            "--host".into(),
+            self.host.clone(),
+            "--port".into(),
+            self.port.to_string(),
+            "--max-message-mb".into(),
+            self.max_message_mb.to_string(),
+        ];
+        if let Some(s) = &self.set {
+            a.extend(["--set".into(), s.clone()]);
+        }
+        if let Some(t) = self.threads {
+            a.extend(["--threads".into(), t.to_string()]);
+        }
+        if self.no_field {
+            a.push("--no-field".into());
+        }
+        a
+    }
+}
+
+/// Runs the server in the Python interpreter that has the `brainshift` package and pyigtl.
+pub fn run(o: &ServeOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
+    let python = std::env::var("BRAINSHIFT_PYTHON").unwrap_or_else(|_| "python3".into());
+    let probe = Command::new(&python).args(["-c", "import brainshift.serve, pyigtl"]).output();
+    match probe {
+        Err(e) => {
+            return Err(format!(
+                "brainshift serve runs the Python package's server, and '{python}' cannot be \
+                 started ({e}); set BRAINSHIFT_PYTHON to a Python 3 interpreter"
+            )
+            .into());
+        }
+        Ok(out) if !out.status.success() => {
+            return Err(format!(
+                "brainshift serve runs the Python package's server, and '{python}' cannot \
+                 import it: {}install it with `pip install ./crates/bs-py pyigtl` (or set \
+                 BRAINSHIFT_PYTHON to the interpreter that has them)",
+                String::from_utf8_lossy(&out.stderr)
+                    .lines()
+                    .last()
+                    .map(|l| format!("{l}; "))
+                    .unwrap_or_default()
+            )
+            .into());
+        }
+        Ok(_) => {}
+    }
+    let mut cmd = Command::new(&python);
+    cmd.args(o.args());
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::CommandExt;
+        // Replace this process: Ctrl-C and SIGTERM reach the server itself.
+        let e = cmd.exec();
+        Err(format!("could not start '{python}': {e}").into())
+    }
+    #[cfg(not(unix))]
+    {
+        let status = cmd.status()?;
+        Ok(if status.success() { ExitCode::SUCCESS } else { ExitCode::FAILURE })
+    }
+}
