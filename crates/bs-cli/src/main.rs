@@ -37,6 +37,11 @@ enum Command {
     Check {
         /// The scene file (TOML).
         scene: PathBuf,
+        /// Also measure what each region with its own material changes: solve the scene,
+        /// then once per region other than the largest with its elements made part of the
+        /// largest, and print the largest and mean displacement differences.
+        #[arg(long)]
+        region_effect: bool,
     },
     /// Computes the brain shift of a scene and writes DIR/result.vtu (displacement,
     /// in_contact; von Mises stress and J per element), DIR/displacements.csv and
@@ -271,7 +276,9 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result: Result<ExitCode, Box<dyn std::error::Error>> = match cli.command {
         Command::Inspect { file, json } => inspect::run(&file, json).map_err(Into::into),
-        Command::Check { scene } => check::run(&scene).map_err(Into::into),
+        Command::Check { scene, region_effect } => {
+            check::run(&scene, region_effect).map_err(Into::into)
+        }
         Command::Run { scene, out, threads, quiet } => run::run(&run::RunOptions {
             scene: scene.unwrap_or_else(run::default_scene),
             out,

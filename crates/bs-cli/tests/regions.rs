@@ -339,3 +339,45 @@ fn unknown_output_surface_is_refused_with_the_known_sets() {
     }
     assert!(!out.exists(), "run wrote {out:?}");
 }
+
+/// The number after `prefix` in `text`.
+fn number_after(text: &str, prefix: &str) -> f64 {
+    let at =
+        text.find(prefix).unwrap_or_else(|| panic!("'{prefix}' not in:\n{text}")) + prefix.len();
+    text[at..].split_whitespace().next().unwrap().parse().unwrap()
+}
+
+/// `check --region-effect` on the two bars: the second bar made part of the first (the
+/// larger) gives one homogeneous bar, u_z = −d z / L, so what the second bar's own material
+/// changes is known in closed form: |u_series(z) − u_homogeneous(z)|, piecewise linear in z,
+/// zero at both ends, largest on the interface z = L₁, and over the second bar's nodes
+/// (layers at L₁, L₁ + L₂/2 and L₁ + L₂, nine nodes each) on average half of that. Printed
+/// to 4 decimals (mm), asserted to that rounding; the solves are exact to 1e-7 mm (above).
+#[test]
+fn region_effect_of_the_second_bar_is_the_closed_form_difference() {
+    let [(_, [(t1, m1), (t2, m2)]), _] = pairs();
+    let stretches = confined_series_stretches((&m1, L1), (&m2, L2), SHORTENING).unwrap();
+    let expected = (exact_uz(L1, stretches) - (-SHORTENING * L1 / (L1 + L2))).abs();
+    let dir = TempDir::new_in("regions", "effect");
+    let (deck, _) = box_deck("t4");
+    std::fs::write(dir.0.join("box.inp"), deck).unwrap();
+    let scene = dir.0.join("scene.toml");
+    std::fs::write(&scene, box_scene("t4", &t1, &t2, "")).unwrap();
+    let o = brainshift(&["check", scene.to_str().unwrap(), "--region-effect"]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{out}\n{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.contains("each region's elements made 'FIRST'"), "{out}");
+    let max = number_after(&out, "'SECOND' changes displacements by up to");
+    let mean = number_after(&out, "), by");
+    assert!((max - expected).abs() <= 0.5e-4 + 1e-7, "max {max} vs closed form {expected}\n{out}");
+    assert!(
+        (mean - expected / 2.0).abs() <= 0.5e-4 + 1e-7,
+        "mean {mean} vs {}\n{out}",
+        expected / 2.0
+    );
+    assert!(out.contains("over its 27 nodes"), "{out}");
+    // Without the flag, check only points at it.
+    let o = brainshift(&["check", scene.to_str().unwrap()]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("`brainshift check --region-effect`"), "{out}");
+}

@@ -56,6 +56,7 @@ pub mod output;
 pub mod outside;
 pub mod planes;
 pub mod prepare;
+pub mod region_effect;
 pub mod registration;
 pub mod run;
 pub mod scene;
