@@ -109,11 +109,20 @@ pub struct Options {
     pub memory_gib: u64,
     /// ccx threads.
     pub threads: usize,
+    /// Only this penalty slope (`--slope K`), else every slope of the case.
+    pub slope: Option<f64>,
 }
 
 impl Default for Options {
     fn default() -> Self {
-        Options { only: None, deck_only: false, timeout: 3600, memory_gib: 8, threads: 1 }
+        Options {
+            only: None,
+            deck_only: false,
+            timeout: 3600,
+            memory_gib: 8,
+            threads: 1,
+            slope: None,
+        }
     }
 }
 
@@ -137,6 +146,9 @@ pub fn parse_args(args: &[String]) -> Result<Options, String> {
             "--threads" => {
                 o.threads = value("--threads")?.parse().map_err(|e| format!("--threads: {e}"))?;
             }
+            "--slope" => {
+                o.slope = Some(value("--slope")?.parse().map_err(|e| format!("--slope: {e}"))?);
+            }
             other => return Err(format!("unknown option '{other}'")),
         }
     }
@@ -156,7 +168,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         selected += 1;
         let prepared = Prepared::load(&root.join("fixtures").join(case.name).join(case.scene))
             .map_err(|e| e.to_string())?;
-        for &k in case.slopes {
+        for &k in case.slopes.iter().filter(|&&k| !case.contact || o.slope.is_none_or(|s| s == k)) {
             let tag =
                 if case.contact { format!("{}-k{}", case.stem, k) } else { case.stem.to_string() };
             let what = if case.contact { format!("K={k}") } else { "no contact".into() };

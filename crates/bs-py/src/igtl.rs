@@ -27,10 +27,11 @@ static TABLES: std::sync::LazyLock<[[u64; 256]; 8]> = std::sync::LazyLock::new(|
     t
 });
 
-/// CRC-64/ECMA-182 of `data`.
-pub(crate) fn crc64_of(data: &[u8]) -> u64 {
+/// CRC-64/ECMA-182 of `data`, continuing from `crc` (the checksum of what came before; 0
+/// to start).
+pub(crate) fn crc64_of(data: &[u8], crc: u64) -> u64 {
     let t = &*TABLES;
-    let mut crc = 0u64;
+    let mut crc = crc;
     let mut chunks = data.chunks_exact(8);
     for c in &mut chunks {
         let x = crc ^ u64::from_be_bytes(c.try_into().expect("8 bytes"));
@@ -42,9 +43,23 @@ pub(crate) fn crc64_of(data: &[u8]) -> u64 {
     crc
 }
 
-/// The OpenIGTLink checksum (CRC-64/ECMA-182) of `bytes` (or a bytearray), computed with
-/// the GIL released.
+/// The OpenIGTLink checksum (CRC-64/ECMA-182) of `data` (bytes, bytearray, or a
+/// contiguous one-dimensional uint8 numpy array, e.g. an image's `.reshape(-1).view(uint8)`),
+/// continuing from `crc` (the checksum of the bytes before it, so that a body sent in parts
+/// is summed without joining them), computed with the GIL released.
 #[pyfunction]
-pub(crate) fn crc64(py: Python<'_>, data: pyo3::pybacked::PyBackedBytes) -> u64 {
-    py.detach(|| crc64_of(&data))
+#[pyo3(signature = (data, crc=0))]
+pub(crate) fn crc64(py: Python<'_>, data: &Bound<'_, PyAny>, crc: u64) -> PyResult<u64> {
+    if let Ok(b) = data.extract::<pyo3::pybacked::PyBackedBytes>() {
+        return Ok(py.detach(|| crc64_of(&b, crc)));
+    }
+    let a: numpy::PyReadonlyArray1<'_, u8> = data.extract().map_err(|_| {
+        pyo3::exceptions::PyValueError::new_err(
+            "crc64: bytes, a bytearray or a one-dimensional uint8 numpy array",
+        )
+    })?;
+    let bytes = a.as_slice().map_err(|_| {
+        pyo3::exceptions::PyValueError::new_err("crc64: the array must be contiguous")
+    })?;
+    Ok(py.detach(|| crc64_of(bytes, crc)))
 }

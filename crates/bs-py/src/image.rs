@@ -65,6 +65,13 @@ impl InverseMap {
         affine(py, self.grid.voxel_to_world())
     }
 
+    /// Conjugate-gradient iterations of the extension between brain and skull (0 without
+    /// a skull or a gap).
+    #[getter]
+    fn extension_iterations(&self) -> usize {
+        self.map.outside_report().map_or(0, |r| r.iterations)
+    }
+
     /// The image (a `brainshift.Image`, on this grid) warped into the result's
     /// configuration: float32 (nx, ny, nz), as `Result.warp`.
     fn warp<'py>(&self, py: Python<'py>, image: &Bound<'py, Image>) -> PyResult<Bound<'py, PyAny>> {

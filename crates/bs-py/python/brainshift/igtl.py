@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import socket
 import struct
+import sys
 import time
 from dataclasses import dataclass
 from typing import Optional, Tuple
@@ -225,23 +226,47 @@ def unpack_polydata(h: Header, body: bytes) -> Tuple[np.ndarray, np.ndarray]:
     return points, t
 
 
+SCALAR_TYPES = {np.dtype(np.int8): 2, np.dtype(np.uint8): 3, np.dtype(np.int16): 4,
+                np.dtype(np.uint16): 5, np.dtype(np.int32): 6, np.dtype(np.uint32): 7,
+                np.dtype(np.float32): 10, np.dtype(np.float64): 11}
+
+
+def _header(message_type: str, device: str, body_size: int, crc: int, timestamp: Optional[float]) -> bytes:
+    t = time.time() if timestamp is None else timestamp
+    seconds = int(t)
+    fraction = min(int((t - seconds) * 2**32), 2**32 - 1)
+    return HEADER.pack(1, message_type.encode("ascii"), device.encode("ascii"), seconds, fraction,
+                       body_size, crc)
+
+
+def image_parts(image: np.ndarray, ijk_to_ras: np.ndarray, device: str,
+                timestamp: Optional[float] = None) -> list:
+    """An IMAGE message (header version 1, RAS) as a list of buffers to send in order,
+    the voxels not copied: ``image`` is C-contiguous (k, j, i) or (k, j, i, components),
+    as pyigtl's ``ImageMessage`` takes it, and the bytes are the ones its ``pack()`` writes
+    (the same float32 matrix and image centre)."""
+    a = np.ascontiguousarray(image)
+    if a.ndim == 3:
+        a = a[..., np.newaxis]
+    nk, nj, ni, components = a.shape
+    size = np.array([ni, nj, nk])
+    m = np.asarray(ijk_to_ras, dtype=np.float32)
+    centre = m.dot(np.array([(ni - 1) / 2.0, (nj - 1) / 2.0, (nk - 1) / 2.0, 1.0]))
+    little = a.dtype.byteorder == "<" or (a.dtype.byteorder == "=" and sys.byteorder == "little")
+    head = struct.pack("> H B B B B H H H", 1, components, SCALAR_TYPES[a.dtype.newbyteorder("=")],
+                       2 if little or a.dtype.byteorder == "|" else 1, 1, *size)
+    head += struct.pack("> 12f", *m[0:3, 0], *m[0:3, 1], *m[0:3, 2], *centre[0:3])
+    head += struct.pack("> 6H", 0, 0, 0, *size)
+    data = a.reshape(-1).view(np.uint8)
+    crc = crc64(data, crc64(head))
+    return [_header("IMAGE", device, len(head) + data.nbytes, crc, timestamp), head, data]
+
+
 def pack(message, timestamp: Optional[float] = None) -> bytes:
     """A pyigtl message as OpenIGTLink bytes (header version 1), as ``message.pack()``
     writes them, with the native checksum."""
     body = message._pack_content()
-    t = time.time() if timestamp is None else timestamp
-    seconds = int(t)
-    fraction = min(int((t - seconds) * 2**32), 2**32 - 1)
-    header = HEADER.pack(
-        1,
-        message.message_type.encode("ascii"),
-        message.device_name.encode("ascii"),
-        seconds,
-        fraction,
-        len(body),
-        crc64(body),
-    )
-    return header + body
+    return _header(message.message_type, message.device_name, len(body), crc64(body), timestamp) + body
 
 
 class TriangleMesh:

@@ -140,8 +140,8 @@ class Brainshift:
         )
 
     def update(self, loads: dict) -> Iterator[bytes]:
-        """Solves (one update at a time), then yields the replies as bytes, each computed
-        just before it is sent: WarpedImage first (what the surgeon waits for), then
+        """Solves (one update at a time), then yields the replies as buffers to send in
+        order, each message computed just before it is sent: WarpedImage first (what the surgeon waits for), then
         DisplacementField, DeformedBrain and Report. Raises BrainshiftError before the
         first reply (the session keeps its last good state)."""
         pyigtl = _pyigtl()
@@ -154,13 +154,10 @@ class Brainshift:
             m = r.inverse_map(self.image)
             warped = m.warp(self.image)
             ras = m.affine  # voxel index -> RAS (mm)
-            yield igtl.pack(pyigtl.ImageMessage(warped.T, ijk_to_world_matrix=ras, world_coordinate_system="ras",
-                                                device_name="WarpedImage"))
+            yield from igtl.image_parts(warped.T, ras, "WarpedImage")
             t_image = time.perf_counter()
             if self.field:
-                f = m.field().transpose(2, 1, 0, 3)
-                yield igtl.pack(pyigtl.ImageMessage(f, ijk_to_world_matrix=ras, world_coordinate_system="ras",
-                                                    device_name="DisplacementField"))
+                yield from igtl.image_parts(m.field().transpose(2, 1, 0, 3), ras, "DisplacementField")
             points, tris, _ = r.surface()
             yield igtl.pack(igtl.TriangleMesh(self.frame.to_ras(points), tris, "DeformedBrain"))
             report = dict(r.report, serve={"solve_seconds": solved - t0, "image_seconds": t_image - solved})
@@ -168,7 +165,7 @@ class Brainshift:
             self.log(
                 f"  solved in {solved - t0:.2f} s ({report['steps']} Newton, {report['linear_iterations']} GMRES, "
                 f"max displacement {report['max_displacement']:.2f} {report['units']}); WarpedImage packed "
-                f"{t_image - solved:.2f} s later"
+                f"{t_image - solved:.2f} s later ({m.extension_iterations} extension iterations)"
             )
 
         return replies()
