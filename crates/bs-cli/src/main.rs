@@ -201,6 +201,12 @@ enum Command {
         /// Largest message accepted, MB.
         #[arg(long, default_value_t = 64.0)]
         max_message_mb: f64,
+        /// Close a connection silent this long in the middle of a message, seconds.
+        #[arg(long, default_value_t = 30.0)]
+        stall_seconds: f64,
+        /// Clients served at once (more are answered with an error and closed).
+        #[arg(long, default_value_t = 16)]
+        max_clients: usize,
     },
     /// Parameter sweeps: plan one scene per row from a sweep file, run rows (anywhere, in
     /// any order, idempotently), collect one table, or emit a Slurm array job.
@@ -327,18 +333,29 @@ fn main() -> ExitCode {
             };
             query.and_then(|q| gap::run(&skull, &q, algorithm, out.as_deref()))
         }
-        Command::Serve { scene, image, host, port, set, threads, no_field, max_message_mb } => {
-            serve::run(&serve::ServeOptions {
-                scene,
-                image,
-                host,
-                port,
-                set,
-                threads,
-                no_field,
-                max_message_mb,
-            })
-        }
+        Command::Serve {
+            scene,
+            image,
+            host,
+            port,
+            set,
+            threads,
+            no_field,
+            max_message_mb,
+            stall_seconds,
+            max_clients,
+        } => serve::run(&serve::ServeOptions {
+            scene,
+            image,
+            host,
+            port,
+            set,
+            threads,
+            no_field,
+            max_message_mb,
+            stall_seconds,
+            max_clients,
+        }),
         Command::Sweep(c) => match c {
             SweepCommand::Plan { sweep, out } => sweep::plan(&sweep, &out),
             SweepCommand::Run { dir, index, threads, quiet } => {

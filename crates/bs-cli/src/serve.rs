@@ -17,6 +17,8 @@ pub struct ServeOptions {
     pub threads: Option<usize>,
     pub no_field: bool,
     pub max_message_mb: f64,
+    pub stall_seconds: f64,
+    pub max_clients: usize,
 }
 
 impl ServeOptions {
@@ -34,6 +36,10 @@ impl ServeOptions {
             self.port.to_string(),
             "--max-message-mb".into(),
             self.max_message_mb.to_string(),
+            "--stall-seconds".into(),
+            self.stall_seconds.to_string(),
+            "--max-clients".into(),
+            self.max_clients.to_string(),
         ];
         if let Some(s) = &self.set {
             a.extend(["--set".into(), s.clone()]);

@@ -329,6 +329,21 @@ def test_fuzzed_streams_never_stop_the_server(server, ellipsoid):
     assert [h.device for h, _ in out].count("WarpedImage") == 2
 
 
+def test_openigtlink_3_messages_with_metadata_are_read(server, ellipsoid):
+    """OpenIGTLink 3 (Slicer 5) sends header version 2: an extended header and metadata
+    around the content; packed here by pyigtl itself (its own CRC)."""
+    m = surface_message(ellipsoid, -2.0)
+    m.header_version = 2
+    m.metadata = {"Sender": "test", "Frame": "RAS"}
+    s = pyigtl.StringMessage("node_id,ux,uy,uz\n", device_name="Displacements")
+    s.header_version = 2
+    s.metadata = {"Sender": "test"}
+    out = raw(server.port, m.pack() + s.pack())
+    devices = [h.device for h, _ in out]
+    assert devices[:4] == ["WarpedImage", "DisplacementField", "DeformedBrain", "Report"], devices
+    assert "nodes of the set have no row" in error_text(*out[4])
+
+
 def test_a_client_leaving_mid_update_and_two_clients_at_once(server, ellipsoid):
     s = socket.create_connection(("127.0.0.1", server.port))
     s.sendall(igtl.pack(surface_message(ellipsoid, -2.5)))
@@ -342,6 +357,32 @@ def test_a_client_leaving_mid_update_and_two_clients_at_once(server, ellipsoid):
     b.stop()
     assert ra is not None and rb is not None
     assert server.alive()
+
+
+def test_a_client_stalled_mid_message_is_closed_and_too_many_are_refused(fixtures, ellipsoid):
+    s = ServerProcess(fixtures, "--stall-seconds", "0.5", "--max-clients", "2")
+    try:
+        data = igtl.pack(surface_message(ellipsoid, -1.0))
+        stalled = socket.create_connection(("127.0.0.1", s.port))
+        stalled.sendall(data[:100])  # header and part of the body, then nothing
+        stalled.settimeout(10)
+        h, body = igtl.read_message(stalled, 1 << 20)
+        assert "no byte for 0.5 s in the middle of a message" in error_text(h, body)
+        stalled.close()
+        held = [socket.create_connection(("127.0.0.1", s.port)) for _ in range(2)]
+        for _ in range(50):  # until the server has accepted both (and let the stalled go)
+            extra = raw(s.port, b"", timeout=5)
+            if extra:
+                break
+            time.sleep(0.1)
+        assert extra and "already serves 2 clients" in error_text(*extra[0]), "".join(s.lines)
+        for c in held:
+            c.close()
+        time.sleep(0.3)
+        out = raw(s.port, data)
+        assert [h.device for h, _ in out][0] == "WarpedImage"
+    finally:
+        assert s.stop() == 0
 
 
 def test_ctrl_c_stops_the_server_cleanly(fixtures, ellipsoid):

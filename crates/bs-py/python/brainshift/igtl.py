@@ -89,36 +89,51 @@ def parse_header(raw: bytes) -> Header:
     return Header(version, t, _name(device, "device name"), seconds + fraction / 2**32, size, crc)
 
 
-def _recv_exactly(sock: socket.socket, n: int, what: str) -> Optional[bytearray]:
-    """``n`` bytes, or None if the peer closed before the first one."""
+def _recv_exactly(sock: socket.socket, n: int, what: str, started: bool = False,
+                  offset: int = 0) -> Optional[bytearray]:
+    """``n`` bytes; None if the peer closed before the first one of an item not yet
+    ``started``, else a ProtocolError naming the truncation (``offset`` bytes of the item
+    came before these)."""
     buf = bytearray(n)
     view = memoryview(buf)
     got = 0
     while got < n:
         k = sock.recv_into(view[got:], n - got)
         if k == 0:
-            if got == 0:
+            if got == 0 and not started:
                 return None
-            raise ProtocolError(f"{what} truncated: {got} of {n} bytes, then the client closed")
+            raise ProtocolError(
+                f"{what} truncated: {offset + got} of {offset + n} bytes, then the client closed"
+            )
         got += k
     return buf
 
 
-def read_message(sock: socket.socket, max_body: int) -> Optional[Tuple[Header, bytes]]:
+def read_message(sock: socket.socket, max_body: int,
+                 stall: Optional[float] = None) -> Optional[Tuple[Header, bytes]]:
     """The next message (header, body) on ``sock``; None when the client closed between
-    messages. Raises ProtocolError (framing lost) or socket errors/timeouts."""
-    raw = _recv_exactly(sock, HEADER_SIZE, "header")
-    if raw is None:
+    messages. Between messages the wait is unbounded; once a message has begun, more than
+    ``stall`` seconds without a byte is a ProtocolError (a client that stopped mid-message
+    would otherwise hold its connection forever). Raises ProtocolError (framing lost) or
+    socket errors."""
+    first = _recv_exactly(sock, 1, "header")
+    if first is None:
         return None
-    h = parse_header(bytes(raw))
-    if h.body_size > max_body:
-        raise ProtocolError(
-            f"{h}: a body of {h.body_size} bytes exceeds the server's limit of {max_body} "
-            "bytes (--max-message-mb)"
-        )
-    body = _recv_exactly(sock, h.body_size, f"{h} body") if h.body_size else bytearray()
-    if body is None:
-        raise ProtocolError(f"{h}: the client closed before the body")
+    previous = sock.gettimeout()
+    sock.settimeout(stall)
+    try:
+        raw = first + _recv_exactly(sock, HEADER_SIZE - 1, "header", started=True, offset=1)
+        h = parse_header(bytes(raw))
+        if h.body_size > max_body:
+            raise ProtocolError(
+                f"{h}: a body of {h.body_size} bytes exceeds the server's limit of {max_body} "
+                "bytes (--max-message-mb)"
+            )
+        body = _recv_exactly(sock, h.body_size, f"{h} body", started=True) if h.body_size else bytearray()
+    except socket.timeout:
+        raise ProtocolError(f"no byte for {stall:g} s in the middle of a message") from None
+    finally:
+        sock.settimeout(previous)
     return h, bytes(body)
 
 

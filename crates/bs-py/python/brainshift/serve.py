@@ -220,10 +220,13 @@ class Server:
     """The listening socket and one thread per client; updates one at a time."""
 
     def __init__(self, brainshift: Brainshift, host: str = "127.0.0.1", port: int = DEFAULT_PORT,
-                 max_message_bytes: int = 64 << 20, log: Callable[[str], None] = print):
+                 max_message_bytes: int = 64 << 20, log: Callable[[str], None] = print,
+                 stall_seconds: float = 30.0, max_clients: int = 16):
         self.bs = brainshift
         self.log = log
         self.max_body = max_message_bytes
+        self.stall = stall_seconds
+        self.max_clients = max_clients
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         self.sock.bind((host, port))
@@ -243,6 +246,11 @@ class Server:
                 continue
             except OSError:
                 break
+            if len(self.clients) >= self.max_clients:
+                self.log(f"refused {peer[0]}:{peer[1]}: {self.max_clients} clients already connected")
+                self._error(conn, f"the server already serves {self.max_clients} clients; try again later")
+                conn.close()
+                continue
             k = self.next_client
             self.next_client += 1
             self.clients[k] = conn
@@ -292,7 +300,7 @@ class Server:
     def _serve(self, k: int, conn: socket.socket, name: str) -> None:
         while not self.stopping.is_set():
             try:
-                msg = igtl.read_message(conn, self.max_body)
+                msg = igtl.read_message(conn, self.max_body, self.stall)
             except igtl.ProtocolError as e:
                 self._error(conn, f"{e}; closing the connection")
                 return
@@ -345,13 +353,17 @@ def main(argv: Optional[List[str]] = None) -> int:
     p.add_argument("--threads", type=int, help="solver threads (default: all cores)")
     p.add_argument("--no-field", action="store_true", help="do not send the DisplacementField image")
     p.add_argument("--max-message-mb", type=float, default=64.0, help="largest message accepted (default 64 MB)")
+    p.add_argument("--stall-seconds", type=float, default=30.0,
+                   help="close a connection silent this long in the middle of a message (default 30)")
+    p.add_argument("--max-clients", type=int, default=16, help="clients served at once (default 16)")
     a = p.parse_args(argv)
     log = lambda s: print(s, flush=True)  # noqa: E731
     _pyigtl()
     log(f"preparing {a.scene} and reading {a.image} ...")
     try:
         bs = Brainshift(a.scene, a.image, a.set_name, a.threads, field=not a.no_field, log=log)
-        server = Server(bs, a.host, a.port, int(a.max_message_mb * (1 << 20)), log=log)
+        server = Server(bs, a.host, a.port, int(a.max_message_mb * (1 << 20)), log=log,
+                        stall_seconds=a.stall_seconds, max_clients=a.max_clients)
     except (BrainshiftError, ValueError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
