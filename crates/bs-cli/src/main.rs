@@ -207,6 +207,9 @@ enum Command {
         /// Clients served at once (more are answered with an error and closed).
         #[arg(long, default_value_t = 16)]
         max_clients: usize,
+        /// Print every solver iteration.
+        #[arg(long)]
+        verbose: bool,
     },
     /// Parameter sweeps: plan one scene per row from a sweep file, run rows (anywhere, in
     /// any order, idempotently), collect one table, or emit a Slurm array job.
@@ -344,6 +347,7 @@ fn main() -> ExitCode {
             max_message_mb,
             stall_seconds,
             max_clients,
+            verbose,
         } => serve::run(&serve::ServeOptions {
             scene,
             image,
@@ -355,6 +359,7 @@ fn main() -> ExitCode {
             max_message_mb,
             stall_seconds,
             max_clients,
+            verbose,
         }),
         Command::Sweep(c) => match c {
             SweepCommand::Plan { sweep, out } => sweep::plan(&sweep, &out),

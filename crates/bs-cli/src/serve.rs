@@ -19,6 +19,7 @@ pub struct ServeOptions {
     pub max_message_mb: f64,
     pub stall_seconds: f64,
     pub max_clients: usize,
+    pub verbose: bool,
 }
 
 impl ServeOptions {
@@ -49,6 +50,9 @@ impl ServeOptions {
         }
         if self.no_field {
             a.push("--no-field".into());
+        }
+        if self.verbose {
+            a.push("--verbose".into());
         }
         a
     }

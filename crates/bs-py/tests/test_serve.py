@@ -395,13 +395,14 @@ def test_ctrl_c_stops_the_server_cleanly(fixtures, ellipsoid):
 
 
 def test_brainshift_serve_runs_the_same_server(fixtures, cli, ellipsoid):
-    s = ServerProcess(fixtures, program=(cli.path, "serve"))
+    s = ServerProcess(fixtures, "--verbose", program=(cli.path, "serve"))
     assert any(line.startswith("prepared in ") for line in s.lines)
     c = client(s.port)
     c.send_message(surface_message(ellipsoid, -2.0), wait=True)
     assert c.wait_for_message("WarpedImage", timeout=60) is not None
     c.stop()
     assert s.stop() == 0
+    assert any(line.startswith("    iteration 1: load") for line in s.lines), s.lines
 
 
 def test_a_scene_without_the_set_or_image_is_refused_before_listening(fixtures, tmp_path):

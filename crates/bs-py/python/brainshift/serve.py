@@ -78,7 +78,7 @@ class Brainshift:
     """The session, the image, and what a measurement becomes: one update at a time."""
 
     def __init__(self, scene: str, image: str, set_name: Optional[str], threads: Optional[int],
-                 field: bool = True, log: Callable[[str], None] = print):
+                 field: bool = True, log: Callable[[str], None] = print, verbose: bool = False):
         self.log = log
         started = time.perf_counter()
         s = Scene.from_toml(scene)
@@ -101,6 +101,7 @@ class Brainshift:
         self.set_name = set_name
         self.set_ids = np.asarray(self.session.set_nodes(set_name), dtype=np.int64)
         self.field = field
+        self.verbose = verbose
         self.preop_landmarks: Dict[int, tuple] = {}
         self.lock = threading.Lock()
         self.prepare_seconds = time.perf_counter() - started
@@ -139,6 +140,13 @@ class Brainshift:
             "POINT 'PreopLandmarks' + 'IntraopLandmarks', or STRING 'Displacements'"
         )
 
+    def _progress(self, p: dict) -> None:
+        self.log(
+            f"    iteration {p['step']}: load {p['load_factor']:.3f}, error estimate "
+            f"{p['error_estimate']:.2e}, max displacement {p['max_displacement']:.3f}, "
+            f"{p['nodes_in_contact']} nodes in contact"
+        )
+
     def update(self, loads: dict) -> Iterator[bytes]:
         """Solves (one update at a time), then yields the replies as buffers to send in
         order, each message computed just before it is sent: WarpedImage first (what the surgeon waits for), then
@@ -147,7 +155,7 @@ class Brainshift:
         pyigtl = _pyigtl()
         t0 = time.perf_counter()
         with self.lock:
-            r = self.session.update(**loads)
+            r = self.session.update(**loads, progress=self._progress if self.verbose else None)
         solved = time.perf_counter()
 
         def replies():
@@ -352,6 +360,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     p.add_argument("--set", dest="set_name", help="node set the measurements move (default: the scene's only prescribed one)")
     p.add_argument("--threads", type=int, help="solver threads (default: all cores)")
     p.add_argument("--no-field", action="store_true", help="do not send the DisplacementField image")
+    p.add_argument("--verbose", action="store_true", help="print every solver iteration")
     p.add_argument("--max-message-mb", type=float, default=64.0, help="largest message accepted (default 64 MB)")
     p.add_argument("--stall-seconds", type=float, default=30.0,
                    help="close a connection silent this long in the middle of a message (default 30)")
@@ -361,7 +370,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     _pyigtl()
     log(f"preparing {a.scene} and reading {a.image} ...")
     try:
-        bs = Brainshift(a.scene, a.image, a.set_name, a.threads, field=not a.no_field, log=log)
+        bs = Brainshift(a.scene, a.image, a.set_name, a.threads, field=not a.no_field, log=log,
+                        verbose=a.verbose)
         server = Server(bs, a.host, a.port, int(a.max_message_mb * (1 << 20)), log=log,
                         stall_seconds=a.stall_seconds, max_clients=a.max_clients)
     except (BrainshiftError, ValueError, OSError) as e:
