@@ -177,40 +177,7 @@ enum Command {
     /// Geometry on the wire: RAS, mm. Runs the Python package's server (`python3 -m
     /// brainshift.serve`; BRAINSHIFT_PYTHON names another interpreter), which needs `pip
     /// install ./crates/bs-py pyigtl`.
-    Serve {
-        /// The scene file (TOML).
-        scene: PathBuf,
-        /// The pre-operative image to warp (.nii, .nii.gz, .nrrd), in the scene's world.
-        #[arg(long)]
-        image: PathBuf,
-        /// Address to listen on (127.0.0.1: this machine only).
-        #[arg(long, default_value = "127.0.0.1")]
-        host: String,
-        /// TCP port (18944: OpenIGTLink's; 0: any free port, printed).
-        #[arg(long, default_value_t = 18944)]
-        port: u16,
-        /// The prescribed node set the measurements move (default: the scene's only one).
-        #[arg(long)]
-        set: Option<String>,
-        /// Solver threads (default: all cores).
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Do not send the DisplacementField image.
-        #[arg(long)]
-        no_field: bool,
-        /// Largest message accepted, MB.
-        #[arg(long, default_value_t = 64.0)]
-        max_message_mb: f64,
-        /// Close a connection silent this long in the middle of a message, seconds.
-        #[arg(long, default_value_t = 30.0)]
-        stall_seconds: f64,
-        /// Clients served at once (more are answered with an error and closed).
-        #[arg(long, default_value_t = 16)]
-        max_clients: usize,
-        /// Print every solver iteration.
-        #[arg(long)]
-        verbose: bool,
-    },
+    Serve(serve::ServeOptions),
     /// Parameter sweeps: plan one scene per row from a sweep file, run rows (anywhere, in
     /// any order, idempotently), collect one table, or emit a Slurm array job.
     #[command(subcommand)]
@@ -336,31 +303,7 @@ fn main() -> ExitCode {
             };
             query.and_then(|q| gap::run(&skull, &q, algorithm, out.as_deref()))
         }
-        Command::Serve {
-            scene,
-            image,
-            host,
-            port,
-            set,
-            threads,
-            no_field,
-            max_message_mb,
-            stall_seconds,
-            max_clients,
-            verbose,
-        } => serve::run(&serve::ServeOptions {
-            scene,
-            image,
-            host,
-            port,
-            set,
-            threads,
-            no_field,
-            max_message_mb,
-            stall_seconds,
-            max_clients,
-            verbose,
-        }),
+        Command::Serve(o) => serve::run(&o),
         Command::Sweep(c) => match c {
             SweepCommand::Plan { sweep, out } => sweep::plan(&sweep, &out),
             SweepCommand::Run { dir, index, threads, quiet } => {

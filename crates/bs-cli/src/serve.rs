@@ -7,18 +7,39 @@ use std::path::PathBuf;
 use std::process::{Command, ExitCode};
 
 /// The options of `python -m brainshift.serve`, forwarded as given.
-#[derive(Debug)]
+#[derive(Debug, clap::Args)]
 pub struct ServeOptions {
+    /// The scene file (TOML).
     pub scene: PathBuf,
+    /// The pre-operative image to warp (.nii, .nii.gz, .nrrd), in the scene's world.
+    #[arg(long)]
     pub image: PathBuf,
+    /// Address to listen on (127.0.0.1: this machine only).
+    #[arg(long, default_value = "127.0.0.1")]
     pub host: String,
+    /// TCP port (18944: OpenIGTLink's; 0: any free port, printed).
+    #[arg(long, default_value_t = 18944)]
     pub port: u16,
+    /// The prescribed node set the measurements move (default: the scene's only one).
+    #[arg(long)]
     pub set: Option<String>,
+    /// Solver threads (default: all cores).
+    #[arg(long)]
     pub threads: Option<usize>,
+    /// Do not send the DisplacementField image.
+    #[arg(long)]
     pub no_field: bool,
+    /// Largest message accepted, MB.
+    #[arg(long, default_value_t = 64.0)]
     pub max_message_mb: f64,
+    /// Close a connection silent this long in the middle of a message, seconds.
+    #[arg(long, default_value_t = 30.0)]
     pub stall_seconds: f64,
+    /// Clients served at once (more are answered with an error and closed).
+    #[arg(long, default_value_t = 16)]
     pub max_clients: usize,
+    /// Print every solver iteration.
+    #[arg(long)]
     pub verbose: bool,
 }
 
