@@ -164,6 +164,14 @@ def test_packing_equals_pyigtl_and_the_checksum_its_crcmod():
     assert igtl.crc64(data[50_000:], igtl.crc64(data[:50_000].tobytes())) == CRC64(data.tobytes())
     m = pyigtl.StringMessage("brain shift", device_name="Report", timestamp=1234.5)
     assert igtl.pack(m, timestamp=1234.5) == m.pack()
+    assert igtl.string_message("brain shift", "Report", timestamp=1234.5) == m.pack()
+    text = "λ₁ ≤ 0.9 × L: refused"  # what pyigtl 0.3.4 cannot encode; UTF-8 here
+    packed = igtl.string_message(text, "Error")
+    h = igtl.parse_header(packed[:58])
+    assert igtl.unpack_with(pyigtl.StringMessage, h, packed[58:]).string == text
+    igtl.check_crc(h, packed[58:])
+    long = igtl.string_message("x" * 70_000, "Report")
+    assert len(long) == 58 + 4 + 0xFFFF and long.endswith(b"STRING message holds)")
     img = np.arange(24, dtype=np.float32).reshape(2, 3, 4)
     m = pyigtl.ImageMessage(img, ijk_to_world_matrix=np.diag([2.0, 1.0, 1.5, 1.0]),
                             world_coordinate_system="ras", device_name="WarpedImage", timestamp=7.25)

@@ -241,6 +241,24 @@ def unpack_polydata(h: Header, body: bytes) -> Tuple[np.ndarray, np.ndarray]:
     return points, t
 
 
+IANA_ASCII, IANA_UTF8 = 3, 106
+
+
+def string_message(text: str, device: str, timestamp: Optional[float] = None) -> bytes:
+    """A STRING message: ASCII when the text is, else UTF-8 (pyigtl 0.3.4's encoder fails
+    on non-ASCII text: it catches the wrong exception). The length field is 16 bits: text
+    beyond 65535 bytes is cut, with a note saying so."""
+    try:
+        data, encoding = text.encode("ascii"), IANA_ASCII
+    except UnicodeEncodeError:
+        data, encoding = text.encode("utf-8"), IANA_UTF8
+    if len(data) > 0xFFFF:
+        note = b" ... (cut: longer than a STRING message holds)"
+        data = data[: 0xFFFF - len(note)].decode("utf-8", "ignore").encode("utf-8") + note
+    body = struct.pack("> H H", encoding, len(data)) + data
+    return _header("STRING", device, len(body), crc64(body), timestamp) + body
+
+
 SCALAR_TYPES = {np.dtype(np.int8): 2, np.dtype(np.uint8): 3, np.dtype(np.int16): 4,
                 np.dtype(np.uint16): 5, np.dtype(np.int32): 6, np.dtype(np.uint32): 7,
                 np.dtype(np.float32): 10, np.dtype(np.float64): 11}

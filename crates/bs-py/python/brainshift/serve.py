@@ -169,7 +169,7 @@ class Brainshift:
             points, tris, _ = r.surface()
             yield igtl.pack(igtl.TriangleMesh(self.frame.to_ras(points), tris, "DeformedBrain"))
             report = dict(r.report, serve={"solve_seconds": solved - t0, "image_seconds": t_image - solved})
-            yield igtl.pack(pyigtl.StringMessage(json.dumps(report), device_name="Report"))
+            yield igtl.string_message(json.dumps(report), "Report")
             self.log(
                 f"  solved in {solved - t0:.2f} s ({report['steps']} Newton, {report['linear_iterations']} GMRES, "
                 f"max displacement {report['max_displacement']:.2f} {report['units']}); WarpedImage packed "
@@ -302,8 +302,7 @@ class Server:
 
     def _error(self, conn: socket.socket, text: str) -> bool:
         self.log(f"  error: {text}")
-        m = _pyigtl().StringMessage(text, device_name="Error")
-        return self._send(conn, [igtl.pack(m)])
+        return self._send(conn, [igtl.string_message(text, "Error")])
 
     def _serve(self, k: int, conn: socket.socket, name: str) -> None:
         while not self.stopping.is_set():
