@@ -29,6 +29,9 @@ pub struct ServeOptions {
     /// Do not send the DisplacementField image.
     #[arg(long)]
     pub no_field: bool,
+    /// Do not send the DeformedBrain surface.
+    #[arg(long)]
+    pub no_surface: bool,
     /// Largest message accepted, MB.
     #[arg(long, default_value_t = 64.0)]
     pub max_message_mb: f64,
@@ -71,6 +74,9 @@ impl ServeOptions {
         }
         if self.no_field {
             a.push("--no-field".into());
+        }
+        if self.no_surface {
+            a.push("--no-surface".into());
         }
         if self.verbose {
             a.push("--verbose".into());

@@ -15,6 +15,7 @@ fn options() -> ServeOptions {
         set: Some("CRANIOTOMY".into()),
         threads: Some(2),
         no_field: true,
+        no_surface: true,
         max_message_mb: 64.0,
         stall_seconds: 30.0,
         max_clients: 16,
@@ -27,7 +28,7 @@ fn the_options_are_forwarded_to_the_python_server() {
     let a = options().args();
     let expected = "-m brainshift.serve fixtures/mni152/scene.toml --image fixtures/mni152/t1.nii.gz \
                     --host 127.0.0.1 --port 18944 --max-message-mb 64 --stall-seconds 30 \
-                    --max-clients 16 --set CRANIOTOMY --threads 2 --no-field --verbose";
+                    --max-clients 16 --set CRANIOTOMY --threads 2 --no-field --no-surface --verbose";
     assert_eq!(a.join(" "), expected);
 }
 

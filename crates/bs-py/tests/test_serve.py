@@ -393,6 +393,28 @@ def test_a_client_stalled_mid_message_is_closed_and_too_many_are_refused(fixture
         assert s.stop() == 0
 
 
+def test_pyigtl_clients_can_be_made_to_read_polydata_and_no_surface_leaves_it_out(fixtures, ellipsoid):
+    """brainshift.igtl.let_pyigtl_read_polydata() against this file's own reader, and
+    --no-surface: the other replies only."""
+    s = ServerProcess(fixtures, "--no-surface")
+    try:
+        out = raw(s.port, igtl.pack(surface_message(ellipsoid, -2.0)))
+        assert [h.device for h, _ in out] == ["WarpedImage", "DisplacementField", "Report"]
+    finally:
+        s.stop()
+    pts = np.random.default_rng(5).normal(size=(6, 3)).astype(np.float32).astype(float)
+    tris = np.array([[0, 1, 2], [3, 4, 5], [1, 2, 3]])
+    wire = igtl.pack(igtl.TriangleMesh(pts, tris, "DeformedBrain"))
+    h = pyigtl.MessageBase.parse_header(wire[:58])
+    try:
+        igtl.let_pyigtl_read_polydata()
+        m = pyigtl.MessageBase.create_message("POLYDATA")
+        m.unpack(h, wire[58:])
+        assert np.array_equal(m.points, pts) and np.array_equal(m.triangles, tris)
+    finally:
+        pyigtl.messages.message_type_to_class_constructor["POLYDATA"] = _PolyData
+
+
 def test_ctrl_c_stops_the_server_cleanly(fixtures, ellipsoid):
     s = ServerProcess(fixtures)
     c = client(s.port)  # a client still connected

@@ -322,3 +322,21 @@ class TriangleMesh:
         n = len(self.points)
         head = POLYDATA_HEADER.pack(n, 0, 0, 0, 0, len(t), 16 * len(t), 0, 0, 0)
         return head + np.ascontiguousarray(self.points, dtype=">f4").tobytes() + cells.tobytes()
+
+
+def let_pyigtl_read_polydata() -> None:
+    """Makes pyigtl clients (0.3.4 and earlier) able to receive POLYDATA such as
+    ``DeformedBrain``: pyigtl's own reader fails in its receiving thread, which then drops
+    the connection. Registers a reader built on :func:`unpack_polydata` (points (n, 3) and
+    triangles (m, 3) as ``message.points`` and ``message.triangles``)."""
+    import pyigtl
+
+    class PolyDataMessage(pyigtl.PolyDataMessage):
+        def unpack(self, header_fields, body):
+            h = Header(header_fields["header_version"], header_fields["message_type"],
+                       header_fields["device_name"], header_fields["timestamp"],
+                       header_fields["body_size"], 0)
+            self.device_name, self.timestamp = h.device, h.timestamp
+            self.points, self.triangles = unpack_polydata(h, body)
+
+    pyigtl.messages.message_type_to_class_constructor["POLYDATA"] = PolyDataMessage

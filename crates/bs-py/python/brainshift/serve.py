@@ -78,7 +78,8 @@ class Brainshift:
     """The session, the image, and what a measurement becomes: one update at a time."""
 
     def __init__(self, scene: str, image: str, set_name: Optional[str], threads: Optional[int],
-                 field: bool = True, log: Callable[[str], None] = print, verbose: bool = False):
+                 field: bool = True, log: Callable[[str], None] = print, verbose: bool = False,
+                 surface: bool = True):
         self.log = log
         started = time.perf_counter()
         s = Scene.from_toml(scene)
@@ -102,6 +103,7 @@ class Brainshift:
         self.set_ids = np.asarray(self.session.set_nodes(set_name), dtype=np.int64)
         self.field = field
         self.verbose = verbose
+        self.surface = surface
         self.preop_landmarks: Dict[int, tuple] = {}
         self.lock = threading.Lock()
         self.prepare_seconds = time.perf_counter() - started
@@ -166,8 +168,9 @@ class Brainshift:
             t_image = time.perf_counter()
             if self.field:
                 yield from igtl.image_parts(m.field().transpose(2, 1, 0, 3), ras, "DisplacementField")
-            points, tris, _ = r.surface()
-            yield igtl.pack(igtl.TriangleMesh(self.frame.to_ras(points), tris, "DeformedBrain"))
+            if self.surface:
+                points, tris, _ = r.surface()
+                yield igtl.pack(igtl.TriangleMesh(self.frame.to_ras(points), tris, "DeformedBrain"))
             report = dict(r.report, serve={"solve_seconds": solved - t0, "image_seconds": t_image - solved})
             yield igtl.string_message(json.dumps(report), "Report")
             self.log(
@@ -359,6 +362,9 @@ def main(argv: Optional[List[str]] = None) -> int:
     p.add_argument("--set", dest="set_name", help="node set the measurements move (default: the scene's only prescribed one)")
     p.add_argument("--threads", type=int, help="solver threads (default: all cores)")
     p.add_argument("--no-field", action="store_true", help="do not send the DisplacementField image")
+    p.add_argument("--no-surface", action="store_true",
+                   help="do not send the DeformedBrain surface (pyigtl 0.3.4 clients cannot read POLYDATA "
+                        "unless they call brainshift.igtl.let_pyigtl_read_polydata())")
     p.add_argument("--verbose", action="store_true", help="print every solver iteration")
     p.add_argument("--max-message-mb", type=float, default=64.0, help="largest message accepted (default 64 MB)")
     p.add_argument("--stall-seconds", type=float, default=30.0,
@@ -370,7 +376,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     log(f"preparing {a.scene} and reading {a.image} ...")
     try:
         bs = Brainshift(a.scene, a.image, a.set_name, a.threads, field=not a.no_field, log=log,
-                        verbose=a.verbose)
+                        verbose=a.verbose, surface=not a.no_surface)
         server = Server(bs, a.host, a.port, int(a.max_message_mb * (1 << 20)), log=log,
                         stall_seconds=a.stall_seconds, max_clients=a.max_clients)
     except (BrainshiftError, ValueError, OSError) as e:
