@@ -100,7 +100,7 @@ Commands:
                   exits non-zero on any finding (optimised with overflow checks: profile
                   `fuzzing`)
   reference       CalculiX reference solutions of the contact fixtures (needs ccx):
-                  [--case NAME] [--deck-only] [--timeout S] [--memory-gib G] [--threads N] [--slope K]
+                  [--case NAME] [--deck-only] [--timeout S] [--memory-gib G] [--threads N] [--slope K] [--collect]
   help            print this help
 ";
 

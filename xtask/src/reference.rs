@@ -17,7 +17,11 @@
 //! ccx runs under a memory cap (`ulimit -v`) and a time limit; its displacements (from
 //! `*NODE PRINT` in the .dat file) are stored with the control deck, the ccx version, the
 //! wall time and K in `fixtures/<case>/reference/`. Two slopes (K = 1 and 10 per length unit,
-//! MPa/mm for mm scenes) are run: their difference is the reference's own uncertainty.
+//! MPa/mm for mm scenes) are run: their difference is the reference's own uncertainty
+//! (`--slope K` runs one). A run that stops short of the full load stores its last converged
+//! increment as `TAG-partial.csv` (named by `partial` in its metadata): a reference at that
+//! fraction of the load. `--collect` reads back a run left in the work folder (one stopped
+//! by hand) instead of starting ccx.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -111,6 +115,9 @@ pub struct Options {
     pub threads: usize,
     /// Only this penalty slope (`--slope K`), else every slope of the case.
     pub slope: Option<f64>,
+    /// Do not run ccx: read back the run left in the work folder (`--collect`), e.g. one
+    /// stopped by hand.
+    pub collect_only: bool,
 }
 
 impl Default for Options {
@@ -122,6 +129,7 @@ impl Default for Options {
             memory_gib: 8,
             threads: 1,
             slope: None,
+            collect_only: false,
         }
     }
 }
@@ -146,6 +154,7 @@ pub fn parse_args(args: &[String]) -> Result<Options, String> {
             "--threads" => {
                 o.threads = value("--threads")?.parse().map_err(|e| format!("--threads: {e}"))?;
             }
+            "--collect" => o.collect_only = true,
             "--slope" => {
                 o.slope = Some(value("--slope")?.parse().map_err(|e| format!("--slope: {e}"))?);
             }
@@ -175,7 +184,9 @@ pub fn run(o: &Options) -> Result<(), String> {
             let work = root.join("target/reference").join(case.name).join(&tag);
             std::fs::create_dir_all(&work).map_err(|e| format!("{}: {e}", work.display()))?;
             let deck = Deck::new(&prepared, case.contact.then_some(k))?;
-            deck.write(&work)?;
+            if !o.collect_only {
+                deck.write(&work)?;
+            }
             let store = root.join("fixtures").join(case.name).join("reference");
             std::fs::create_dir_all(&store).map_err(|e| format!("{}: {e}", store.display()))?;
             std::fs::copy(work.join("job.inp"), store.join(format!("{tag}.inp")))
@@ -184,8 +195,13 @@ pub fn run(o: &Options) -> Result<(), String> {
                 println!("{label} {what}: deck written to {}", work.display());
                 continue;
             };
-            println!("{label} {what}: running ccx in {} ...", work.display());
-            let outcome = run_ccx(&work, o)?;
+            let outcome = if o.collect_only {
+                println!("{label} {what}: reading back the run in {} ...", work.display());
+                left_behind(&work)?
+            } else {
+                println!("{label} {what}: running ccx in {} ...", work.display());
+                run_ccx(&work, o)?
+            };
             let result = collect(&prepared, &deck, &work, &outcome);
             println!(
                 "{label} {what}: {} in {:.1} s, load reached {:.3}{}",
@@ -256,6 +272,26 @@ fn run_ccx(work: &Path, o: &Options) -> Result<CcxOutcome, String> {
     })
 }
 
+/// The outcome of a ccx run found in `work` (not started here): its wall time from the
+/// deck's and the log's modification times, its log's tail, no exit status.
+fn left_behind(work: &Path) -> Result<CcxOutcome, String> {
+    let modified = |f: &str| {
+        std::fs::metadata(work.join(f))
+            .and_then(|m| m.modified())
+            .map_err(|e| format!("{}: {e}", work.join(f).display()))
+    };
+    let wall_seconds =
+        modified("ccx.log")?.duration_since(modified("job.inp")?).map_or(0.0, |d| d.as_secs_f64());
+    let log = std::fs::read_to_string(work.join("ccx.log")).unwrap_or_default();
+    let tail: Vec<&str> = log.lines().rev().take(15).collect();
+    Ok(CcxOutcome {
+        status: None,
+        timed_out: false,
+        wall_seconds,
+        log_tail: tail.into_iter().rev().collect::<Vec<_>>().join("\n"),
+    })
+}
+
 /// Displacements and status read back from a ccx run.
 #[derive(Debug)]
 pub struct Collected {
@@ -307,6 +343,20 @@ impl Collected {
         p: &Prepared,
     ) -> Result<(), String> {
         let mut max_penetration = None;
+        let partial = (!self.converged
+            && self.load_fraction > 0.0
+            && self.displacements.len() == p.mesh.nodes.len())
+        .then(|| format!("{tag}-partial.csv"));
+        if let Some(name) = &partial {
+            // The last converged increment of a run that stopped short: a reference at that
+            // fraction of the load (the static problem does not depend on the path).
+            let mut csv = String::from("node_id,ux,uy,uz\n");
+            for (id, u) in &self.displacements {
+                let _ = writeln!(csv, "{id},{:e},{:e},{:e}", u[0], u[1], u[2]);
+            }
+            let path = dir.join(name);
+            std::fs::write(&path, csv).map_err(|e| format!("{}: {e}", path.display()))?;
+        }
         if self.converged {
             let mut csv = String::from("node_id,ux,uy,uz\n");
             for (id, u) in &self.displacements {
@@ -328,6 +378,7 @@ impl Collected {
             "wall_seconds": outcome.wall_seconds,
             "max_penetration": max_penetration,
             "message": self.message,
+            "partial": partial,
             "command": "cargo xtask reference",
         });
         let path = dir.join(format!("{tag}.json"));

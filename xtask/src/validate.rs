@@ -20,7 +20,7 @@ use bs_contact::shapes::{self, Rng};
 use bs_contact::{BruteForce, ClosestPoint, Handler, MasterSurface, PaperParams};
 use bs_mesh::{Point3, TriSurface, Vector3};
 use bs_scene::Prepared;
-use bs_scene::calculix::{field, read_reference};
+use bs_scene::calculix::{Reference, field, read_partial, read_reference};
 use bs_scene::scene::{Algorithm, ElementChoice, SolverKind};
 use bs_scene::study::{ContactChoice, Outcome, Variant, difference};
 
@@ -366,17 +366,30 @@ fn calculix(add: &mut dyn FnMut(Row)) -> Result<(), String> {
 fn calculix_cases(add: &mut dyn FnMut(Row), cases: &[&str]) -> Result<(), String> {
     for &case in cases {
         let dir = root().join("fixtures").join(case).join("reference");
-        let (Some(k10), Some(k1)) =
-            (read_reference(&dir, "ccx-k10")?, read_reference(&dir, "ccx-k1")?)
-        else {
+        let label = format!("CalculiX / {case}");
+        let Some(k10) = read_reference(&dir, "ccx-k10")? else {
             println!("{case}: no stored CalculiX reference (run `cargo xtask reference`)");
             continue;
         };
-        let p = load(&format!("fixtures/{case}/scene.toml"))?;
-        let label = format!("CalculiX / {case}");
         if k10.meta["converged"] != serde_json::Value::Bool(true) {
-            return Err(format!("{label}: the stored K=10 run did not converge"));
+            // A run that stopped short: its last converged increment, if stored, is a
+            // reference at that fraction of the load.
+            match read_partial(&dir, &k10)? {
+                Some(partial) => calculix_partial(add, case, &partial)?,
+                None if k10.displacements.is_empty() => println!(
+                    "{label}: CalculiX K=10 did not converge (reached {:.3} of the load); no \
+                     comparison",
+                    k10.meta["load_fraction_reached"].as_f64().unwrap_or(f64::NAN)
+                ),
+                None => return Err(format!("{label}: the stored K=10 run did not converge")),
+            }
+            continue;
         }
+        let Some(k1) = read_reference(&dir, "ccx-k1")? else {
+            println!("{case}: no stored CalculiX K=1 reference (run `cargo xtask reference`)");
+            continue;
+        };
+        let p = load(&format!("fixtures/{case}/scene.toml"))?;
         let u10 = field(&p, &k10, &label)?;
         let u1 = field(&p, &k1, &label)?;
         let (sens_mean, sens_max) = difference(&u1, &u10, None);
@@ -424,6 +437,66 @@ fn calculix_cases(add: &mut dyn FnMut(Row), cases: &[&str]) -> Result<(), String
                 unit: "mm",
             });
         }
+    }
+    Ok(())
+}
+
+/// Tolerances against a CalculiX run that stopped short of the full load (mm): the mean is
+/// issue 26's target for the patient-like case; the max is the cap of the other contact
+/// cases. The penalty's own effect cannot be measured (the K = 1 run stopped at another
+/// fraction of the load), so no tighter bound is derived.
+const PARTIAL_MEAN: f64 = 0.05;
+const PARTIAL_MAX: f64 = 0.3;
+
+/// Newton–Krylov and DR (T4) at the fraction of the load a stopped CalculiX run reached,
+/// against its last converged increment: frictionless contact and hyperelastic materials
+/// make the static state independent of the loading path, so the two are the same problem.
+fn calculix_partial(add: &mut dyn FnMut(Row), case: &str, r: &Reference) -> Result<(), String> {
+    let p = load(&format!("fixtures/{case}/scene.toml"))?;
+    let fraction = r.meta["load_fraction_reached"].as_f64().ok_or("no load_fraction_reached")?;
+    let label = format!("CalculiX / {case} at {:.1} % of the load", 100.0 * fraction);
+    let u_ref = field(&p, r, &label)?;
+    for solver in [SolverKind::NewtonKrylov, SolverKind::Dr] {
+        let v = Variant {
+            element: Some(ElementChoice::T4),
+            tolerance: Some(CCX_DR_TOLERANCE),
+            solver: Some(solver),
+            load_factor: Some(fraction),
+            ..Variant::default()
+        };
+        let o = solve(&p, &v, &label)?;
+        let (mean, max) = difference(&o.displacements, &u_ref, None);
+        println!("{label} {}: {}", solver.name(), worst_node(&p, &o.displacements, &u_ref));
+        println!(
+            "{label} {}: {} iterations {:.1} s; ccx stopped after {:.0} s",
+            solver.name(),
+            o.steps,
+            o.solve_seconds,
+            r.meta["wall_seconds"].as_f64().unwrap_or(f64::NAN)
+        );
+        let case = format!("{label} / {} t4", solver.name());
+        let k10 = format!("u_ccx(K=10, {:.3})", fraction);
+        add(Row {
+            case: case.clone(),
+            quantity: format!("mean nodal |u − {k10}|"),
+            value: mean,
+            tolerance: PARTIAL_MEAN,
+            unit: "mm",
+        });
+        add(Row {
+            case: case.clone(),
+            quantity: format!("max nodal |u − {k10}|"),
+            value: max,
+            tolerance: PARTIAL_MAX,
+            unit: "mm",
+        });
+        add(Row {
+            case,
+            quantity: "max penetration of the result".into(),
+            value: o.max_penetration_after,
+            tolerance: CCX_DR_TOLERANCE,
+            unit: "mm",
+        });
     }
     Ok(())
 }

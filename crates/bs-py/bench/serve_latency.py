@@ -162,7 +162,8 @@ def run_sequence(args, messages, boundary):
         server.terminate()
         server.wait(timeout=60)
     if last is not None:
-        print(f"image {last.shape[2]}x{last.shape[1]}x{last.shape[0]} ({last.size / 1e6:.1f} M voxels)")
+        print(f"image {last.shape[2]}x{last.shape[1]}x{last.shape[0]} ({last.size / 1e6:.1f} M voxels); "
+              f"deformed surface {boundary} triangles")
     return rows
 
 

@@ -256,15 +256,32 @@ pub struct Reference {
 }
 
 /// Reads `TAG.json` and `TAG.csv` of a reference folder; `None` when the case has none.
+/// A run that stopped short has no `TAG.csv`; its last converged increment, if stored, is
+/// the file its metadata names as `partial` ([`read_partial`]).
 pub fn read_reference(dir: &Path, tag: &str) -> Result<Option<Reference>, String> {
     let meta_path = dir.join(format!("{tag}.json"));
     let Ok(meta_text) = std::fs::read_to_string(&meta_path) else { return Ok(None) };
     let meta: serde_json::Value =
         serde_json::from_str(&meta_text).map_err(|e| format!("{}: {e}", meta_path.display()))?;
     let csv_path = dir.join(format!("{tag}.csv"));
-    let Ok(text) = std::fs::read_to_string(&csv_path) else {
-        return Ok(Some(Reference { displacements: HashMap::new(), meta }));
-    };
+    let displacements =
+        if csv_path.exists() { read_displacements(&csv_path)? } else { HashMap::new() };
+    Ok(Some(Reference { displacements, meta }))
+}
+
+/// The last converged increment of a stored run that stopped short (its metadata's
+/// `partial` file, at `load_fraction_reached` of the load), with the run's metadata; `None`
+/// when it has none.
+pub fn read_partial(dir: &Path, r: &Reference) -> Result<Option<Reference>, String> {
+    let Some(name) = r.meta["partial"].as_str() else { return Ok(None) };
+    let displacements = read_displacements(&dir.join(name))?;
+    Ok(Some(Reference { displacements, meta: r.meta.clone() }))
+}
+
+/// `node_id,ux,uy,uz` rows after a header line.
+fn read_displacements(csv_path: &Path) -> Result<HashMap<u64, Vector3<f64>>, String> {
+    let text =
+        std::fs::read_to_string(csv_path).map_err(|e| format!("{}: {e}", csv_path.display()))?;
     let mut displacements = HashMap::new();
     for (n, line) in text.lines().enumerate().skip(1) {
         let bad = || format!("{}:{}: expected node_id,ux,uy,uz", csv_path.display(), n + 1);
@@ -277,7 +294,7 @@ pub fn read_reference(dir: &Path, tag: &str) -> Result<Option<Reference>, String
             f[1..].iter().map(|s| s.parse::<f64>()).collect::<Result<_, _>>().map_err(|_| bad())?;
         displacements.insert(id, Vector3::new(v[0], v[1], v[2]));
     }
-    Ok(Some(Reference { displacements, meta }))
+    Ok(displacements)
 }
 
 /// The reference field in mesh node order.
