@@ -453,3 +453,33 @@ def test_image_read_once_warps_as_the_file(fixtures):
     m = r.inverse_map(image)
     assert np.array_equal(m.warp(image), a) and np.array_equal(m.field(), r.field(image)[0])
     assert image.shape == a.shape and np.array_equal(image.affine, m.affine)
+
+
+def test_frames_landmark_pairing_and_displacement_rows():
+    """The pure parts of the server: RAS mm on the wire to the scene's frame and unit, the
+    landmark pairing, the CSV rows in set order."""
+    from brainshift.serve import Frame, displacements_of_csv, pair_landmarks
+
+    h = igtl.Header(1, "POINT", "IntraopLandmarks", 0.0, 0, 0)
+    lps_m = Frame("LPS", "m")
+    assert np.allclose(lps_m.to_scene(np.array([[1000.0, -2000.0, 3000.0]])), [[-1.0, 2.0, 3.0]])
+    assert np.allclose(lps_m.to_ras(lps_m.to_scene(np.array([[1.5, 2.5, -3.5]]))), [[1.5, 2.5, -3.5]])
+    assert np.array_equal(Frame("RAS", "mm").to_scene(np.array([[1.0, 2.0, 3.0]])), [[1.0, 2.0, 3.0]])
+
+    pre = np.arange(12.0).reshape(4, 3)
+    a, b = pair_landmarks(pre, ["a", "b", "c", "d"], pre[[2, 0, 3, 1]] + 1, ["c", "a", "d", "b"], h)
+    assert np.array_equal(b - a, np.ones((4, 3)))  # by name
+    a, b = pair_landmarks(pre, ["", "", "", ""], pre + 1, ["", "", "", ""], h)
+    assert np.array_equal(b - a, np.ones((4, 3)))  # by order
+    with pytest.raises(igtl.MessageError, match="3 intra-operative landmarks for 4"):
+        pair_landmarks(pre, ["a", "b", "c", "d"], pre[:3], ["a", "b", "x"], h)
+
+    ids = np.array([7, 3, 9])
+    d = displacements_of_csv("node_id,ux,uy,uz\n9,1,2,3\n7,4,5,6\n\n3,7,8,9\n", ids, h)
+    assert np.array_equal(d, [[4, 5, 6], [7, 8, 9], [1, 2, 3]])
+    with pytest.raises(igtl.MessageError, match="line 2: node 5 is not in the measured node set"):
+        displacements_of_csv("h\n5,0,0,0\n", ids, h)
+    with pytest.raises(igtl.MessageError, match="2 nodes of the set have no row"):
+        displacements_of_csv("h\n9,0,0,0\n", ids, h)
+    with pytest.raises(igtl.MessageError, match="line 2: expected node_id,ux,uy,uz"):
+        displacements_of_csv("h\n9,0,0,nan\n", ids, h)
