@@ -422,30 +422,36 @@ fn calculix_cases(add: &mut dyn FnMut(Row), cases: &[&str]) -> Result<(), String
                 k10.meta["wall_seconds"].as_f64().unwrap_or(f64::NAN)
             );
             let case = format!("{label} / {} t4", solver.name());
-            add(Row {
-                case: case.clone(),
-                quantity: "mean nodal |u − u_ccx(K=10)|".into(),
-                value: mean,
-                tolerance: (sens_mean + CCX_DR_TOLERANCE + facet_mean).min(0.03),
-                unit: "mm",
-            });
-            add(Row {
-                case: case.clone(),
-                quantity: "max nodal |u − u_ccx(K=10)|".into(),
-                value: max,
-                tolerance: (sens_max + CCX_DR_TOLERANCE + facet_max).min(0.3),
-                unit: "mm",
-            });
-            add(Row {
-                case,
-                quantity: "max penetration of the result".into(),
-                value: o.max_penetration_after,
-                tolerance: CCX_DR_TOLERANCE,
-                unit: "mm",
-            });
+            let tolerances = (
+                (sens_mean + CCX_DR_TOLERANCE + facet_mean).min(0.03),
+                (sens_max + CCX_DR_TOLERANCE + facet_max).min(0.3),
+            );
+            contact_rows(add, &case, "u_ccx(K=10)", (mean, max), tolerances, &o);
         }
     }
     Ok(())
+}
+
+/// The three rows of a contact solve against CalculiX: mean and max nodal difference to
+/// `reference` with their tolerances, and the penetration of the result.
+fn contact_rows(
+    add: &mut dyn FnMut(Row),
+    case: &str,
+    reference: &str,
+    (mean, max): (f64, f64),
+    (mean_tolerance, max_tolerance): (f64, f64),
+    o: &Outcome,
+) {
+    let row = |quantity: String, value: f64, tolerance: f64| Row {
+        case: case.to_string(),
+        quantity,
+        value,
+        tolerance,
+        unit: "mm",
+    };
+    add(row(format!("mean nodal |u − {reference}|"), mean, mean_tolerance));
+    add(row(format!("max nodal |u − {reference}|"), max, max_tolerance));
+    add(row("max penetration of the result".into(), o.max_penetration_after, CCX_DR_TOLERANCE));
 }
 
 /// Tolerances against a CalculiX run that stopped short of the full load (mm): the mean is
@@ -488,27 +494,7 @@ fn calculix_partial(
         );
         let case = format!("{label} / {} t4", solver.name());
         let reference = format!("u_ccx({slope}, {fraction:.3})");
-        add(Row {
-            case: case.clone(),
-            quantity: format!("mean nodal |u − {reference}|"),
-            value: mean,
-            tolerance: PARTIAL_MEAN,
-            unit: "mm",
-        });
-        add(Row {
-            case: case.clone(),
-            quantity: format!("max nodal |u − {reference}|"),
-            value: max,
-            tolerance: PARTIAL_MAX,
-            unit: "mm",
-        });
-        add(Row {
-            case,
-            quantity: "max penetration of the result".into(),
-            value: o.max_penetration_after,
-            tolerance: CCX_DR_TOLERANCE,
-            unit: "mm",
-        });
+        contact_rows(add, &case, &reference, (mean, max), (PARTIAL_MEAN, PARTIAL_MAX), &o);
     }
     Ok(())
 }
