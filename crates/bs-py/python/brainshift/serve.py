@@ -151,10 +151,9 @@ class Brainshift:
 
     def update(self, loads: dict) -> Iterator[bytes]:
         """Solves (one update at a time), then yields the replies as buffers to send in
-        order, each message computed just before it is sent: WarpedImage first (what the surgeon waits for), then
-        DisplacementField, DeformedBrain and Report. Raises BrainshiftError before the
-        first reply (the session keeps its last good state)."""
-        pyigtl = _pyigtl()
+        order, each message computed just before it is sent: WarpedImage first (what the
+        surgeon waits for), then DisplacementField, DeformedBrain and Report. Raises
+        BrainshiftError before the first reply (the session keeps its last good state)."""
         t0 = time.perf_counter()
         with self.lock:
             r = self.session.update(**loads, progress=self._progress if self.verbose else None)
