@@ -403,15 +403,7 @@ fn calculix_cases(add: &mut dyn FnMut(Row), cases: &[&str]) -> Result<(), String
         let skull = p.skull.as_ref().ok_or("the scene has no skull")?;
         let (facet_mean, facet_max) = facet_allowance(skull)?;
         for solver in [SolverKind::NewtonKrylov, SolverKind::Dr] {
-            let v = Variant {
-                element: Some(ElementChoice::T4),
-                tolerance: Some(CCX_DR_TOLERANCE),
-                solver: Some(solver),
-                ..Variant::default()
-            };
-            let o = solve(&p, &v, &label)?;
-            let (mean, max) = difference(&o.displacements, &u10, None);
-            println!("{label} {}: {}", solver.name(), worst_node(&p, &o.displacements, &u10));
+            let (o, mean, max) = against_ccx(&p, solver, None, &u10, &label)?;
             println!(
                 "{label} {}: penalty sensitivity mean {sens_mean:.2e} max {sens_max:.2e} mm; \
                  facet allowance mean {facet_mean:.2e} max {facet_max:.2e} mm; {} iterations \
@@ -430,6 +422,29 @@ fn calculix_cases(add: &mut dyn FnMut(Row), cases: &[&str]) -> Result<(), String
         }
     }
     Ok(())
+}
+
+/// `solver` (T4, at the DR tolerance of the CalculiX comparisons, the push scaled by
+/// `load_factor`) against the CalculiX field `u_ccx`: the outcome, the mean and max nodal
+/// difference; where they differ most is printed.
+fn against_ccx(
+    p: &Prepared,
+    solver: SolverKind,
+    load_factor: Option<f64>,
+    u_ccx: &[Vector3<f64>],
+    label: &str,
+) -> Result<(Outcome, f64, f64), String> {
+    let v = Variant {
+        element: Some(ElementChoice::T4),
+        tolerance: Some(CCX_DR_TOLERANCE),
+        solver: Some(solver),
+        load_factor,
+        ..Variant::default()
+    };
+    let o = solve(p, &v, label)?;
+    let (mean, max) = difference(&o.displacements, u_ccx, None);
+    println!("{label} {}: {}", solver.name(), worst_node(p, &o.displacements, u_ccx));
+    Ok((o, mean, max))
 }
 
 /// The three rows of a contact solve against CalculiX: mean and max nodal difference to
@@ -475,16 +490,7 @@ fn calculix_partial(
     let label = format!("CalculiX {slope} / {case} at {:.1} % of the load", 100.0 * fraction);
     let u_ref = field(&p, r, &label)?;
     for solver in [SolverKind::NewtonKrylov, SolverKind::Dr] {
-        let v = Variant {
-            element: Some(ElementChoice::T4),
-            tolerance: Some(CCX_DR_TOLERANCE),
-            solver: Some(solver),
-            load_factor: Some(fraction),
-            ..Variant::default()
-        };
-        let o = solve(&p, &v, &label)?;
-        let (mean, max) = difference(&o.displacements, &u_ref, None);
-        println!("{label} {}: {}", solver.name(), worst_node(&p, &o.displacements, &u_ref));
+        let (o, mean, max) = against_ccx(&p, solver, Some(fraction), &u_ref, &label)?;
         println!(
             "{label} {}: {} iterations {:.1} s; ccx stopped after {:.0} s",
             solver.name(),
