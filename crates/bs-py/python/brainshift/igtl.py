@@ -1,16 +1,20 @@
 """OpenIGTLink messages on the wire, for :mod:`brainshift.serve`.
 
-The message bodies are pyigtl's (the Perk Lab's OpenIGTLink library, used with 3D Slicer
-and PLUS): ``StringMessage``, ``PointMessage`` and ``ImageMessage`` pack and unpack their
-own content. Three things are done here instead, each because pyigtl 0.3.4 cannot do it
-for a server that must not die on its input:
+The message layouts are pyigtl's (the Perk Lab's OpenIGTLink library, used with 3D Slicer
+and PLUS): incoming POINT and STRING are unpacked by its ``PointMessage`` and
+``StringMessage``, and the replies written here are the bytes its ``pack()`` writes
+(tested). What is done here instead, because pyigtl 0.3.4 cannot do it for a server that
+must not die on its input or must answer fast:
 
 * reading a message off a socket, with the header checked (version 1 or 2, printable
   ASCII type and device name), the body size bounded, the body read in full into one
-  buffer, and its CRC-64 verified (pyigtl's own reader does none of these);
+  buffer, a client silent mid-message closed, and its CRC-64 verified (pyigtl's own reader
+  does none of these);
 * the checksum itself, computed natively (``brainshift._native.crc64``; pyigtl's crcmod is
-  pure Python unless a compiler built its extension, seconds for one image);
-* unpacking POLYDATA (pyigtl's ``PolyDataMessage._unpack_content`` does not run).
+  pure Python unless a compiler built its extension);
+* unpacking POLYDATA (pyigtl's ``PolyDataMessage._unpack_content`` does not run);
+* packing IMAGE without copying the voxels, STRING in UTF-8 when the text is not ASCII
+  (pyigtl's encoder raises), POLYDATA with numpy.
 
 Frames: OpenIGTLink geometry here is RAS, millimetres (3D Slicer's world frame); images
 carry the RAS flag of the IMAGE header.
