@@ -107,7 +107,7 @@ pub use model::{Model, ModelError, ModelOptions};
 pub use newton::{Newton, NewtonError, NewtonInfo, NewtonParams};
 pub use nk::{
     ContinuationParams, LineSearchParams, NewtonKrylov, NewtonKrylovError, NewtonKrylovInfo,
-    NewtonKrylovParams, Preparation,
+    NewtonKrylovParams, Preparation, WarmStart,
 };
 pub use post::ElementMeasures;
 pub use solver::{

@@ -4,10 +4,8 @@
 
 use bs_dr::{
     DrParams, DynamicRelaxation, Newton, NewtonKrylov, NewtonKrylovParams, NewtonParams, Progress,
-    Solution, SolveError, Solver,
+    Solution, SolveError, Solver, WarmStart,
 };
-
-use bs_mesh::Vector3;
 
 use crate::compose::Composed;
 use crate::prepare::Prepared;
@@ -86,16 +84,18 @@ pub fn solve_composed(
     solve_composed_from(c, s, None, observer)
 }
 
-/// [`solve_composed`] from the displacements `start` (a converged state of other prescribed
-/// values: a warm-started update), or from the reference state with `None`. Newton–Krylov
-/// and Dynamic Relaxation move the prescribed components from their values in `start` to
-/// the loads'; the dense reference Newton solver starts only from the reference state.
+/// [`solve_composed`] from a warm start (a converged state of other prescribed values: a
+/// warm-started update; for Newton–Krylov possibly with the state before it, see
+/// [`WarmStart`]), or from the reference state with `None`. Newton–Krylov and Dynamic
+/// Relaxation move the prescribed components from their values in the start state to the
+/// loads'; the dense reference Newton solver starts only from the reference state.
 pub fn solve_composed_from(
     c: &mut Composed,
     s: &SolveSettings,
-    start: Option<&[Vector3<f64>]>,
+    warm: Option<WarmStart<'_>>,
     observer: &mut dyn FnMut(&Progress),
 ) -> Result<(Solution, f64), SolveError> {
+    let start = warm.map(|w| w.state);
     let relative = s.tolerance / c.load_scale;
     let mut max_penetration = 0.0f64;
     let mut observe = |pr: &Progress| {
@@ -112,7 +112,7 @@ pub fn solve_composed_from(
         SolverKind::NewtonKrylov => {
             let prep = c.preparation.as_ref().expect("prepared above");
             newton_krylov_params(s, c.load_scale)
-                .solve_prepared_from(&c.model, &c.loads, prep, start, contact, &mut observe)
+                .solve_prepared_warm(&c.model, &c.loads, prep, warm, contact, &mut observe)
                 .map(Solution::into_common)
                 .map_err(SolveError::from)
         }

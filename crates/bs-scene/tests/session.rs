@@ -80,6 +80,38 @@ fn updates_in_any_order_equal_cold_runs_and_return_to_zero() {
     assert!(largest < TOL, "back to zero: {largest:e} mm");
 }
 
+/// The first Newton correction of an update (its error estimate after the first step).
+fn first_correction(s: &mut Session, v: [f64; 3]) -> (f64, Vec<Vector3<f64>>) {
+    let mut first = None;
+    let solved = s.update(&top(v), &mut |p| {
+        first.get_or_insert(p.err);
+    });
+    (first.unwrap(), solved.unwrap().solution.displacements)
+}
+
+#[test]
+fn an_update_along_the_last_change_starts_from_the_secant_predictor() {
+    // 2 → 4 → 6 mm down: each change continues the last along its line, so the update
+    // starts from u + (u − u_before), and its first Newton correction is the predictor's
+    // error: the box's response is nearly linear in the push (Neo-Hookean, at most 15 %
+    // strain), so a few per cent of the 2 mm change (measured 0.058 and 0.071 mm; bound
+    // 10 %). A turn (a sheared push) is not along the line: it starts with the linearised
+    // response, whose first correction is the change of the prescribed values itself
+    // (1.5 mm along x).
+    let d = tmp("secant");
+    let mut s =
+        Session::new(Prepared::load(&scene(&d, [0.0, 0.0, -2.0], "newton-krylov")).unwrap())
+            .unwrap();
+    s.solve(&mut |_| {}).unwrap();
+    for v in [[0.0, 0.0, -4.0], [0.0, 0.0, -6.0]] {
+        let (err, u) = first_correction(&mut s, v);
+        assert!(err < 0.1 * 2.0, "TOP at {v:?}: first correction {err} mm after the predictor");
+        assert!(max_diff(&u, &cold(&d, v)) < TOL, "TOP at {v:?}: not the cold answer");
+    }
+    let (err, _) = first_correction(&mut s, [1.5, 0.0, -6.0]);
+    assert!(err >= 1.5, "a turn starts from the linearised response: {err} mm");
+}
+
 #[test]
 fn a_per_node_update_in_set_order_equals_the_uniform_one() {
     let d = tmp("per-node");

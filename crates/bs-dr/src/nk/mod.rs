@@ -95,6 +95,19 @@ pub struct NewtonKrylov {
     pub params: NewtonKrylovParams,
 }
 
+/// Where a warm-started solve begins ([`NewtonKrylov::solve_prepared_warm`]).
+#[derive(Debug, Clone, Copy)]
+pub struct WarmStart<'a> {
+    /// A converged state of other prescribed values.
+    pub state: &'a [Vector3<f64>],
+    /// The converged state before `state` and the ratio `s` of the prescribed change now
+    /// (from `state`'s values to the loads') to the change from its values to `state`'s,
+    /// when the prescribed values continue along that line: the solve then starts from the
+    /// predictor `state + s (state − before)` (prescribed components at the loads' values,
+    /// contact predicted, capped by the elements) instead of the linearised response.
+    pub secant: Option<(&'a [Vector3<f64>], f64)>,
+}
+
 /// What [`NewtonKrylov::prepare`] computes: everything that depends only on the mesh, the
 /// materials and which components are prescribed (not on their values), so it can be
 /// computed before the loads are known and reused for any number of solves.
@@ -215,15 +228,41 @@ impl NewtonKrylov {
         contact: &mut dyn Contact,
         observer: &mut dyn FnMut(&Progress),
     ) -> Result<Solution<NewtonKrylovInfo>, NewtonKrylovError> {
+        let warm = start_state.map(|state| WarmStart { state, secant: None });
+        self.solve_prepared_warm(model, loads, prep, warm, contact, observer)
+    }
+
+    /// [`solve_prepared_from`](Self::solve_prepared_from) from a [`WarmStart`]: with its
+    /// `secant`, the first level starts from the secant predictor through the two last
+    /// converged states (as the continuation's later levels do) instead of the linearised
+    /// response to the change of the prescribed values.
+    pub fn solve_prepared_warm(
+        &self,
+        model: &Model,
+        loads: &Loads,
+        prep: &Preparation,
+        warm: Option<WarmStart<'_>>,
+        contact: &mut dyn Contact,
+        observer: &mut dyn FnMut(&Progress),
+    ) -> Result<Solution<NewtonKrylovInfo>, NewtonKrylovError> {
         let start = Instant::now();
+        let start_state = warm.as_ref().map(|w| w.state);
         let pb = Problem::new(&self.params, model, loads, prep, &*contact, start_state)?;
         let mut work = Work::default();
         let mut it = Iterate::new(&pb, &mut work)?;
         let mut saved = Converged::start(&it);
         let mut cont = Continuation::new(self.params.continuation);
+        // The earlier state sits at λ = −1/s: at target t the predictor's factor is t s.
+        let n = it.u.len();
+        let mut first = warm
+            .and_then(|w| w.secant)
+            .filter(|(before, s)| before.len() == n && s.is_finite() && *s > 0.0);
         while !cont.finished() {
             let target = cont.target();
-            let secant = saved.before().zip(cont.extrapolation(target));
+            let secant = match first.take() {
+                Some((before, s)) => Some((before, s * target)),
+                None => saved.before().zip(cont.extrapolation(target)),
+            };
             let level_start = Start { done: cont.done(), target, secant };
             match level::solve(&pb, &mut it, &mut work, level_start, contact, observer)? {
                 Level::Converged { reached, iterations } => {

@@ -1,13 +1,16 @@
 //! A live session: the pre-operative work done once (composition, contact lists, the
 //! solver's preparation), then intra-operative updates, each new measurement of a
 //! prescribed boundary solved warm from the last converged state and verified exactly as a
-//! cold run is. A failed update (a set the scene does not prescribe, a load the solver
+//! cold run is. An update whose prescribed values continue the last change along its line
+//! (within [`SECANT_DEVIATION`]), from two states with as many nodes in contact, starts
+//! from the secant predictor through them ([`history`]); any other from the linearised
+//! response to the change. A failed update (a set the scene does not prescribe, a load the solver
 //! cannot carry, a result that fails verification) leaves the session at its last good
 //! state. Nothing here prints.
 
 use std::path::PathBuf;
 
-use bs_dr::Progress;
+use bs_dr::{Progress, WarmStart};
 use bs_mesh::Vector3;
 
 use crate::SceneError;
@@ -18,6 +21,11 @@ use crate::run::{Run, Solved};
 use crate::scene::{Boundary, Displacement, Scene};
 use crate::solve::solve_composed_from;
 use crate::verify::verify;
+
+mod history;
+
+use history::History;
+pub use history::{SECANT_DEVIATION, secant_ratio};
 
 /// A new measurement of one prescribed boundary, named by its node set.
 #[derive(Debug, Clone, PartialEq)]
@@ -42,6 +50,8 @@ pub struct Session {
     /// Displacements of the last converged update (zero before the first, after a reset).
     state: Vec<Vector3<f64>>,
     warm: bool,
+    /// The prescribed values `state` converged at, and the state before it.
+    history: History,
 }
 
 impl Session {
@@ -50,7 +60,9 @@ impl Session {
         let run = Run::prepare(prepared)?;
         let n = run.prepared.mesh.nodes.len();
         let scene_prescribed = run.prepared.prescribed.clone();
-        Ok(Session { run, scene_prescribed, state: vec![Vector3::zeros(); n], warm: false })
+        let history = History::reference(&scene_prescribed);
+        let state = vec![Vector3::zeros(); n];
+        Ok(Session { run, scene_prescribed, state, warm: false, history })
     }
 
     /// The prepared scene, its composition and its solver settings.
@@ -75,6 +87,7 @@ impl Session {
     pub fn reset(&mut self) {
         self.state.iter_mut().for_each(|u| *u = Vector3::zeros());
         self.warm = false;
+        self.history = History::reference(&self.scene_prescribed);
         let p = self.scene_prescribed.clone();
         // The scene's own loads were accepted when the session was made.
         let _ = self.set_loads(p);
@@ -83,15 +96,18 @@ impl Session {
     /// Solves the loads now set (the scene's own at first) from the last good state.
     pub fn solve(&mut self, observer: &mut dyn FnMut(&Progress)) -> Result<Solved, SceneError> {
         let start = std::time::Instant::now();
-        let from = if self.warm { Some(self.state.as_slice()) } else { None };
-        let run = &mut self.run;
+        let Session { run, state, warm, history, .. } = self;
+        let secant = history.secant(&run.prepared.prescribed);
+        let from = warm.then_some(WarmStart { state, secant });
         let (solution, max_penetration_before) =
             solve_composed_from(&mut run.composed, &run.settings, from, observer)?;
         let tolerance = run.settings.tolerance;
         let verification =
             verify(&run.prepared, &run.composed, &solution.displacements, tolerance)?;
-        self.state.copy_from_slice(&solution.displacements);
-        self.warm = true;
+        let last = std::mem::replace(state, solution.displacements.clone());
+        let contact = solution.report.contact.nodes_in_contact;
+        history.advance(last, &run.prepared.prescribed, contact);
+        *warm = true;
         Ok(Solved {
             solution,
             max_penetration_before,
