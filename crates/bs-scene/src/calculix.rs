@@ -25,10 +25,34 @@ pub struct Deck {
     pub skull: String,
 }
 
+/// How CalculiX pairs each slave node with a skull face (`*CONTACT PAIR`).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Sliding {
+    /// The pairs are formed again in every iteration (CalculiX's default).
+    #[default]
+    Finite,
+    /// `SMALL SLIDING`: the pairs are formed at the start of each increment and kept through
+    /// its iterations, so a node cannot switch faces between iterations (it still slides
+    /// over any distance across increments). A node that alternates between two faces of a
+    /// fold of the skull surface otherwise keeps ccx from converging an increment. Within
+    /// an increment a node may slide off its face into the next one unresisted, so the
+    /// increments are fixed at `increment` of the load (on the MNI152 regions case 5 %
+    /// left a node 0.13 mm inside the skull, 1.25 % 0.018 mm).
+    Small {
+        /// The load fraction of every increment.
+        increment: f64,
+    },
+}
+
 impl Deck {
     /// The deck of a prepared scene with contact of penalty slope `k` (force per length³),
     /// or without the skull when `k` is `None`.
     pub fn new(p: &Prepared, k: Option<f64>) -> Result<Deck, String> {
+        Deck::with_sliding(p, k, Sliding::Finite)
+    }
+
+    /// [`Deck::new`] with the contact pairing of `sliding`.
+    pub fn with_sliding(p: &Prepared, k: Option<f64>, sliding: Sliding) -> Result<Deck, String> {
         let skull = p.skull.as_ref().ok_or("the scene has no skull: nothing to compare")?;
         let (tets, hexes) = p.mesh.count_by_kind();
         if hexes > 0 || tets == 0 {
@@ -135,7 +159,8 @@ impl Deck {
                 "*SURFACE, NAME=SLAVE, TYPE=NODE\nSLAVES\n\
              *SURFACE INTERACTION, NAME=SKULLCONTACT\n\
              *SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR\n{k:e}, 1.0e-9\n\
-             *CONTACT PAIR, INTERACTION=SKULLCONTACT, TYPE=NODE TO SURFACE\nSLAVE, MASTER"
+             *CONTACT PAIR, INTERACTION=SKULLCONTACT, TYPE=NODE TO SURFACE{}\nSLAVE, MASTER",
+                if matches!(sliding, Sliding::Small { .. }) { ", SMALL SLIDING" } else { "" }
             );
         }
         c.push_str("*BOUNDARY\nNSKULL, 1, 3\n");
@@ -146,7 +171,12 @@ impl Deck {
                 }
             }
         }
-        c.push_str("*STEP, NLGEOM, INC=10000\n*STATIC\n0.02, 1.0, 1e-7, 0.05\n*BOUNDARY\n");
+        // Initial, total, minimum and maximum increment of the load.
+        let increments = match sliding {
+            Sliding::Finite => "0.02, 1.0, 1e-7, 0.05".to_string(),
+            Sliding::Small { increment } => format!("{increment}, 1.0, 1e-7, {increment}"),
+        };
+        let _ = write!(c, "*STEP, NLGEOM, INC=10000\n*STATIC\n{increments}\n*BOUNDARY\n");
         for (i, comps) in p.prescribed.iter().enumerate() {
             for (d, v) in comps.iter().enumerate() {
                 if let Some(v) = v.filter(|v| *v != 0.0) {
@@ -317,6 +347,20 @@ mod tests {
 
     fn regions_fixture() -> std::path::PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/mni152-regions/scene.toml")
+    }
+
+    /// Small sliding: the contact pair says so and every increment is the fixed share of
+    /// the load; the default deck keeps CalculiX's pairing and automatic increments.
+    #[test]
+    fn small_sliding_fixes_the_pairs_and_the_increments() {
+        let p = Prepared::load(&regions_fixture()).unwrap();
+        let small = Deck::with_sliding(&p, Some(1.0), Sliding::Small { increment: 0.0125 });
+        let c = small.unwrap().control;
+        assert!(c.contains("TYPE=NODE TO SURFACE, SMALL SLIDING\nSLAVE, MASTER\n"), "{c}");
+        assert!(c.contains("*STATIC\n0.0125, 1.0, 1e-7, 0.0125\n"), "{c}");
+        let c = Deck::new(&p, Some(1.0)).unwrap().control;
+        assert!(c.contains("TYPE=NODE TO SURFACE\nSLAVE, MASTER\n"), "{c}");
+        assert!(c.contains("*STATIC\n0.02, 1.0, 1e-7, 0.05\n"), "{c}");
     }
 
     /// The regions fixture's deck: NEO HOOKE for the parenchyma and the tumour (C10 = μ/2,
