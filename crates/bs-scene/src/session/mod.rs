@@ -4,9 +4,9 @@
 //! cold run is. An update whose prescribed values continue the last change along its line
 //! (within [`SECANT_DEVIATION`]), from two states with as many nodes in contact, starts
 //! from the secant predictor through them ([`history`]); any other from the linearised
-//! response to the change. A failed update (a set the scene does not prescribe, a load the solver
-//! cannot carry, a result that fails verification) leaves the session at its last good
-//! state. Nothing here prints.
+//! response to the change. A failed update (a set the scene does not prescribe, a load the
+//! solver cannot carry, a result that fails verification) leaves the session at its last
+//! good state. Nothing here prints.
 
 use std::path::PathBuf;
 
