@@ -96,42 +96,50 @@ impl LatticeLocation {
             return Err(LocateError::TooLarge { tetrahedra: tets.len() });
         }
         let id = |t: usize| ids.get(t).copied().unwrap_or(t as u64);
-        let mut first = Vec::with_capacity(tets.len());
-        let mut inverse = Vec::with_capacity(tets.len());
-        // Per tet: the lattice index range of its bounding box (empty when outside).
-        let mut ranges = Vec::with_capacity(tets.len());
-        for (t, tet) in tets.iter().enumerate() {
-            let mut q = [Point3::origin(); 4];
-            for c in 0..4 {
-                let p = nodes.get(tet[c]).ok_or(LocateError::Degenerate { id: id(t) })?;
-                q[c] = world_to_index.transform_point(p);
-                if !q[c].coords.iter().all(|x| x.is_finite()) {
-                    return Err(LocateError::NonFinite { id: id(t) });
+        // Per tet, in parallel: its first corner and inverse edge matrix in lattice
+        // coordinates, and the lattice index range of its bounding box (empty when outside).
+        type Setup = (Point3<f64>, Matrix3<f64>, [(usize, usize); 3]);
+        let setup: Vec<Result<Setup, LocateError>> = tets
+            .par_iter()
+            .enumerate()
+            .map(|(t, tet)| {
+                let mut q = [Point3::origin(); 4];
+                for c in 0..4 {
+                    let p = nodes.get(tet[c]).ok_or(LocateError::Degenerate { id: id(t) })?;
+                    q[c] = world_to_index.transform_point(p);
+                    if !q[c].coords.iter().all(|x| x.is_finite()) {
+                        return Err(LocateError::NonFinite { id: id(t) });
+                    }
                 }
-            }
-            let m = Matrix3::from_columns(&[q[1] - q[0], q[2] - q[0], q[3] - q[0]]);
-            let scale = (q[1] - q[0]).norm().max((q[2] - q[0]).norm()).max((q[3] - q[0]).norm());
-            let det = m.determinant();
-            let inv = m
-                .try_inverse()
-                .filter(|_| det.abs() > 1e-14 * scale * scale * scale)
-                .ok_or(LocateError::Degenerate { id: id(t) })?;
-            first.push(q[0]);
-            inverse.push(inv);
-            let mut range = [(1usize, 0usize); 3];
-            for a in 0..3 {
-                let lo = q.iter().map(|p| p[a]).fold(f64::INFINITY, f64::min);
-                let hi = q.iter().map(|p| p[a]).fold(f64::NEG_INFINITY, f64::max);
-                // Lattice points within the box, widened by a hair for points on its faces.
-                let pad = 1e-9 * (hi - lo).max(1.0);
-                let lo = (lo - pad).ceil().max(0.0);
-                let hi = (hi + pad).floor().min((dims[a] as f64) - 1.0);
-                if lo <= hi {
-                    range[a] = (lo as usize, hi as usize);
+                let m = Matrix3::from_columns(&[q[1] - q[0], q[2] - q[0], q[3] - q[0]]);
+                let scale =
+                    (q[1] - q[0]).norm().max((q[2] - q[0]).norm()).max((q[3] - q[0]).norm());
+                let det = m.determinant();
+                let inv = m
+                    .try_inverse()
+                    .filter(|_| det.abs() > 1e-14 * scale * scale * scale)
+                    .ok_or(LocateError::Degenerate { id: id(t) })?;
+                let mut range = [(1usize, 0usize); 3];
+                for a in 0..3 {
+                    let lo = q.iter().map(|p| p[a]).fold(f64::INFINITY, f64::min);
+                    let hi = q.iter().map(|p| p[a]).fold(f64::NEG_INFINITY, f64::max);
+                    // Lattice points within the box, widened by a hair for points on its faces.
+                    let pad = 1e-9 * (hi - lo).max(1.0);
+                    let lo = (lo - pad).ceil().max(0.0);
+                    let hi = (hi + pad).floor().min((dims[a] as f64) - 1.0);
+                    if lo <= hi {
+                        range[a] = (lo as usize, hi as usize);
+                    }
                 }
-            }
-            ranges.push(range);
-        }
+                Ok((q[0], inv, range))
+            })
+            .collect();
+        // The first bad tetrahedron in element order, whatever the threads.
+        let setup: Vec<Setup> = setup.into_iter().collect::<Result<_, _>>()?;
+        let first: Vec<Point3<f64>> = setup.iter().map(|s| s.0).collect();
+        let inverse: Vec<Matrix3<f64>> = setup.iter().map(|s| s.1).collect();
+        let ranges: Vec<[(usize, usize); 3]> = setup.iter().map(|s| s.2).collect();
+        drop(setup);
         // Tetrahedra per z slice (CSR, element order).
         let nz = dims[2];
         let mut count = vec![0usize; nz + 1];
@@ -156,8 +164,11 @@ impl LatticeLocation {
             }
         }
         let [nx, ny, _] = dims;
-        let mut owner = vec![OUTSIDE; nx * ny * nz];
+        // Zeroed lazily by the allocator; each slice is filled by the thread that rasterises
+        // it (the pages are first touched in parallel, and once).
+        let mut owner = vec![0u32; nx * ny * nz];
         owner.par_chunks_mut(nx * ny).enumerate().for_each(|(k, slice)| {
+            slice.fill(OUTSIDE);
             let z = k as f64;
             for &t in &items[count[k]..count[k + 1]] {
                 let t = t as usize;

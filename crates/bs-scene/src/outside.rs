@@ -33,7 +33,8 @@
 //! count of voxels where it is ≤ 0 (the map folds) and its minimum.
 
 use bs_image::Grid;
-use bs_image::extend::{ExtensionParams, Folding, harmonic_extension, jacobian};
+use bs_image::extend::{ExtensionParams, Folding, harmonic_extension, indices_where, jacobian};
+use rayon::prelude::*;
 
 /// The narrowest band of a skull-free extension (mm).
 pub const MIN_BAND_MM: f64 = 10.0;
@@ -104,48 +105,53 @@ pub fn extend(
     exact: impl Fn(usize) -> [f64; 3] + Sync,
     skin: impl Fn(usize) -> Option<[f64; 3]> + Sync,
 ) -> Outside {
-    let (free, boundary): (Vec<bool>, Boundary) = match cavity {
-        Some(c) => (c.iter().zip(in_brain).map(|(&c, &b)| c && !b).collect(), Boundary::Skull),
+    let (mut free, boundary): (Vec<bool>, Boundary) = match cavity {
+        Some(c) => (c.par_iter().zip(in_brain).map(|(&c, &b)| c && !b).collect(), Boundary::Skull),
         None => {
             let width = band_width(max_u);
             let d2 = bs_meshgen::edt::squared_distance(in_brain, grid.dims(), grid.spacing());
             let w2 = (width * width) as f32;
-            (d2.iter().zip(in_brain).map(|(&d, &b)| !b && d <= w2).collect(), Boundary::Band(width))
+            let free = d2.par_iter().zip(in_brain).map(|(&d, &b)| !b && d <= w2).collect();
+            (free, Boundary::Band(width))
         }
     };
     // The skin: gap voxels with the brain on a face; fixed at the continued FE inverse.
-    let mut free = free;
-    let skin_values: Vec<(u32, [f64; 3])> = (0..grid.len())
-        .filter(|&n| free[n])
-        .filter_map(|n| skin(n).map(|d| (n as u32, d)))
-        .collect();
-    let mut skin_slot = vec![u32::MAX; grid.len()];
+    let candidates = indices_where(&free);
+    let skin_values: Vec<(u32, [f64; 3])> =
+        candidates.par_iter().filter_map(|&n| skin(n as usize).map(|d| (n, d))).collect();
+    drop(candidates);
+    // Voxel → its place in a list + 1 (zero elsewhere: only pages with gap voxels are written).
+    let mut slot = vec![0u32; grid.len()];
     for (s, &(v, _)) in skin_values.iter().enumerate() {
         free[v as usize] = false;
-        skin_slot[v as usize] = s as u32;
+        slot[v as usize] = s as u32 + 1;
     }
     let value = |n: usize| {
         if in_brain[n] {
             exact(n)
-        } else if skin_slot[n] != u32::MAX {
-            skin_values[skin_slot[n] as usize].1
+        } else if slot[n] != 0 {
+            skin_values[slot[n] as usize - 1].1
         } else {
             [0.0; 3]
         }
     };
     let ext = harmonic_extension(grid, &free, &value, &ExtensionParams::default());
-    // The gap: the skin and the harmonic voxels together, ascending.
-    let mut gap: Vec<(u32, [f64; 3])> = skin_values.clone();
-    gap.extend(ext.voxels.iter().copied().zip(ext.values.iter().copied()));
-    gap.sort_unstable_by_key(|g| g.0);
-    let (voxels, values): (Vec<u32>, Vec<[f64; 3]>) = gap.into_iter().unzip();
-    let mut slot = vec![u32::MAX; grid.len()];
+    drop(free);
+    // The gap: the skin and the harmonic voxels together, ascending (a merge of two sorted
+    // lists); the skin's table becomes the gap's.
+    let (voxels, values) = merge(&skin_values, &ext.voxels, &ext.values);
     for (s, &v) in voxels.iter().enumerate() {
-        slot[v as usize] = s as u32;
+        slot[v as usize] = s as u32 + 1;
     }
     let field = |n: usize| match slot[n] {
-        u32::MAX => value(n),
-        s => values[s as usize],
+        0 => {
+            if in_brain[n] {
+                exact(n)
+            } else {
+                [0.0; 3]
+            }
+        }
+        s => values[s as usize - 1],
     };
     let folding = jacobian(grid, &voxels, &field);
     let report = OutsideReport {
@@ -162,4 +168,41 @@ pub fn extend(
         }),
     };
     Outside { voxels, values, report }
+}
+
+/// The union of two lists of voxels with their values, each ascending and disjoint, as one
+/// ascending list.
+fn merge(a: &[(u32, [f64; 3])], voxels: &[u32], values: &[[f64; 3]]) -> (Vec<u32>, Vec<[f64; 3]>) {
+    let n = a.len() + voxels.len();
+    let (mut out_v, mut out_d) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() || j < voxels.len() {
+        if j == voxels.len() || (i < a.len() && a[i].0 < voxels[j]) {
+            out_v.push(a[i].0);
+            out_d.push(a[i].1);
+            i += 1;
+        } else {
+            out_v.push(voxels[j]);
+            out_d.push(values[j]);
+            j += 1;
+        }
+    }
+    (out_v, out_d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn merge_interleaves_two_ascending_lists_with_their_values() {
+        let skin = [(2u32, [2.0; 3]), (5, [5.0; 3]), (9, [9.0; 3])];
+        let voxels = [0u32, 3, 4, 10, 11];
+        let values: Vec<[f64; 3]> = voxels.iter().map(|&v| [f64::from(v); 3]).collect();
+        let (v, d) = merge(&skin, &voxels, &values);
+        assert_eq!(v, [0, 2, 3, 4, 5, 9, 10, 11]);
+        assert!(v.iter().zip(&d).all(|(&v, d)| *d == [f64::from(v); 3]));
+        assert_eq!(merge(&[], &voxels, &values).0, voxels);
+        assert_eq!(merge(&skin, &[], &[]).0, [2, 5, 9]);
+    }
 }

@@ -26,6 +26,7 @@ use std::time::Instant;
 use bs_image::{Grid, Space, Volume};
 use bs_mesh::lattice::{LatticeLocation, OUTSIDE, tetrahedra};
 use bs_mesh::{Mesh, Point3, TriSurface, Vector3};
+use rayon::prelude::*;
 
 use crate::SceneError;
 use crate::outside::{Outside, OutsideReport};
@@ -326,7 +327,8 @@ impl InverseMap {
                     grid.world_to_voxel(),
                 )
             });
-            let in_brain: Vec<bool> = map.location.owners().iter().map(|&o| o != OUTSIDE).collect();
+            let in_brain: Vec<bool> =
+                map.location.owners().par_iter().map(|&o| o != OUTSIDE).collect();
             let outside = crate::outside::extend(
                 grid,
                 &in_brain,
@@ -483,17 +485,23 @@ impl InverseMap {
         out
     }
 
-    /// `out` with every gap voxel replaced by `sample(n, y + d(y))` (where it has a value).
-    fn resample_gap<T: Copy>(
+    /// `out` with every gap voxel replaced by `sample(n, y + d(y))` (where it has a value):
+    /// sampled in parallel, written in order.
+    fn resample_gap<T: Copy + Send>(
         &self,
         out: &mut [T],
-        sample: impl Fn(usize, &Point3<f64>) -> Option<T>,
+        sample: impl Fn(usize, &Point3<f64>) -> Option<T> + Sync,
     ) {
         let Some(o) = &self.outside else { return };
-        for (&n, d) in o.voxels.iter().zip(&o.values) {
-            let n = n as usize;
-            if let Some(v) = sample(n, &(self.voxel_centre(n) + Vector3::from(*d))) {
-                out[n] = v;
+        let samples: Vec<Option<T>> = o
+            .voxels
+            .par_iter()
+            .zip(&o.values)
+            .map(|(&n, d)| sample(n as usize, &(self.voxel_centre(n as usize) + Vector3::from(*d))))
+            .collect();
+        for (&n, v) in o.voxels.iter().zip(samples) {
+            if let Some(v) = v {
+                out[n as usize] = v;
             }
         }
     }
