@@ -44,8 +44,10 @@ const MAX_ROUNDS: usize = 8;
 #[derive(Debug, Clone, Copy)]
 pub struct ExtensionParams {
     /// Stop when every component's residual norm is below `tolerance` times its right-hand
-    /// side's norm (default 1e-5: on the MNI152 demo the warped T1 then differs from the
-    /// 1e-6 solve by at most 0.085 of its 255 range, 0.002 on average where it differs).
+    /// side's norm. Default 1e-4: on the MNI152 demo (8 mm) the warped T1 then differs from
+    /// the 1e-7 solve by at most 0.39 of its 255 range (0.013 on average where it differs),
+    /// less than half a grey level of an 8-bit display, in 50 iterations; 1e-5 takes 62
+    /// (0.039 at most), 3e-4 takes 44 but moves 548 voxels by more than half a level.
     pub tolerance: f64,
     /// Conjugate-gradient iterations at most.
     pub max_iterations: usize,
@@ -53,7 +55,7 @@ pub struct ExtensionParams {
 
 impl Default for ExtensionParams {
     fn default() -> Self {
-        ExtensionParams { tolerance: 1e-5, max_iterations: 20_000 }
+        ExtensionParams { tolerance: 1e-4, max_iterations: 20_000 }
     }
 }
 
