@@ -3,6 +3,7 @@
 
 use bs_mesh::Vector3;
 use nalgebra::Matrix3;
+use rayon::prelude::*;
 
 use crate::model::Model;
 use crate::solver::SolveError;
@@ -24,6 +25,18 @@ pub fn von_mises(s: &Matrix3<f64>) -> f64 {
 }
 
 impl Model {
+    /// The smallest element volume ratio `J = det F` at `displacements` (each element's own
+    /// deformation gradient, as [`element_measures`](Self::element_measures); 1 without
+    /// elements).
+    pub fn min_volume_ratio(&self, displacements: &[Vector3<f64>]) -> f64 {
+        let views: Vec<_> = self.elements.iter().map(|(_, v)| v).collect();
+        views
+            .par_iter()
+            .with_min_len(1024)
+            .map(|v| v.deformation_gradient(displacements).determinant())
+            .reduce(|| 1.0, f64::min)
+    }
+
     /// `J` and von Mises stress of every element for `displacements` (indexed like the
     /// nodes). Uses the element's own deformation gradient (for T4ANP the von Mises stress of
     /// the decoupled laws is unaffected by the nodal pressure averaging, which only changes

@@ -81,6 +81,8 @@ pub struct Report {
 pub struct ContinuationSummary {
     /// Load levels converged (1: the whole load at once).
     pub load_levels: usize,
+    /// Rebuilds of the preconditioner on the deformed configuration (Newton–Krylov).
+    pub refreshes: usize,
     /// Failed attempts at a level retried with a smaller increment.
     pub cutbacks: usize,
     /// Dynamic Relaxation steps of the fallback (0: not needed).

@@ -53,8 +53,13 @@ pub struct RunReport {
     /// Part of `solver_seconds` spent evaluating internal forces (newton-krylov; 0 for the
     /// others, which do not time it).
     pub force_seconds: f64,
-    /// Part of `solver_seconds` spent in the preconditioner (newton-krylov).
+    /// Part of `solver_seconds` spent in the preconditioner (newton-krylov), its rebuilds
+    /// included.
     pub preconditioner_seconds: f64,
+    /// Rebuilds of newton-krylov's preconditioner on the deformed configuration (after a
+    /// slow linear solve with elements compressed or stretched by more than 40 %; 0 for
+    /// the other solvers).
+    pub preconditioner_refreshes: usize,
     /// Wall time of the whole run in this process: reading the scene, preparing, solving,
     /// verifying and writing.
     pub total_seconds: f64,
@@ -149,6 +154,7 @@ pub fn report(run: &Run, s: &Solved, ctx: RunContext) -> RunReport {
         contact_seconds: c.contact.as_ref().map_or(0.0, |sc| sc.elapsed.as_secs_f64()),
         force_seconds: r.breakdown.forces.as_secs_f64(),
         preconditioner_seconds: r.breakdown.preconditioner.as_secs_f64(),
+        preconditioner_refreshes: r.continuation.map_or(0, |c| c.refreshes),
         total_seconds: ctx.total_seconds,
         error_estimate: r.err,
         tolerance: run.settings.tolerance,

@@ -104,6 +104,28 @@ impl Elements {
         4 * self.tets.len() + 8 * self.hexes.len()
     }
 
+    /// These elements with the tetrahedra `tets` (same nodes and order, other gradients and
+    /// volumes) for the stiffness assembly only: without the kernels' blocks (empty), so
+    /// not for force evaluations.
+    pub(crate) fn for_assembly(&self, tets: Vec<Tet>) -> Elements {
+        debug_assert_eq!(tets.len(), self.tets.len());
+        Elements {
+            solids: self.solids.clone(),
+            tet: self.tet,
+            tets,
+            tet_elem: self.tet_elem.clone(),
+            hexes: self.hexes.clone(),
+            hex_elem: self.hex_elem.clone(),
+            element_ids: Vec::new(),
+            slots: self.slots.clone(),
+            anp_inv_vol: self.anp_inv_vol.clone(),
+            anp_slots: self.anp_slots.clone(),
+            anp_ptr: self.anp_ptr.clone(),
+            tet_blocks: Vec::new(),
+            hex_blocks: Vec::new(),
+        }
+    }
+
     /// Number of T4ANP averaging groups (at least the node count).
     pub(crate) fn anp_groups(&self) -> usize {
         self.anp_inv_vol.len()

@@ -12,8 +12,12 @@
 //! That term is kept as a [`RankOneSum`], never assembled: it would couple each node with its
 //! two-ring. `K₀` is returned as a [`NodalMatrix`] (the assembled element part plus the
 //! nodal term).
+//!
+//! [`linear_stiffness_at`] is the same small-strain stiffness on a deformed configuration
+//! (the tetrahedra's gradients and volumes at `X + u`, the reference moduli): the
+//! preconditioner refreshed for large deformations, where `K₀` drifts from the tangent.
 
-use bs_mesh::Vector3;
+use bs_mesh::{Point3, Vector3};
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
@@ -21,6 +25,7 @@ use crate::linalg::nodal::NodalMatrix;
 use crate::linalg::sparse::{BlockCsr, RankOneSum};
 
 use super::elements::Elements;
+use crate::element::Tet;
 
 /// `K_ab = V (λ gₐ⊗g_b + μ g_b⊗gₐ + μ (gₐ·g_b) I)`: the isotropic small-strain stiffness block
 /// coupling nodes `a` and `b` of an element with (mean) gradients `ga`, `gb`.
@@ -61,6 +66,23 @@ pub(crate) fn linear_stiffness(elements: &Elements) -> NodalMatrix {
     });
     let nodal = anp.then(|| nodal_volumetric(elements));
     NodalMatrix { assembled: k, nodal }
+}
+
+/// [`linear_stiffness`] of the tetrahedra at the positions `x` (`None` with hexahedra, which
+/// keep their reference stiffness, or when a tetrahedron is inverted or flat at `x`).
+pub(crate) fn linear_stiffness_at(elements: &Elements, x: &[Point3<f64>]) -> Option<NodalMatrix> {
+    if !elements.hexes.is_empty() {
+        return None;
+    }
+    let tets: Option<Vec<Tet>> = elements
+        .tets
+        .par_iter()
+        .map(|t| {
+            let corners = t.nodes.map(|a| x[a as usize]);
+            Tet::new(t.nodes, t.mat, &corners).ok().map(|d| Tet { vol: d.vol, g: d.g, ..*t })
+        })
+        .collect();
+    Some(linear_stiffness(&elements.for_assembly(tets?)))
 }
 
 /// The node graph of the element connectivity: every row sorted, the diagonal included.

@@ -17,6 +17,7 @@ use super::linear::forces;
 use super::loading::{self, Schedule};
 use super::outcome::NewtonKrylovError;
 use super::problem::Problem;
+use super::refresh;
 use super::termination::{Failure, Iteration, Termination, Verdict};
 use crate::contact::{Contact, ContactReport};
 use crate::solver::{LoadFailure, Progress};
@@ -84,6 +85,7 @@ pub(crate) fn solve(
         // 2. The direction: a load step, or an equilibrium (Newton) step.
         let load = schedule.load_now(it.phi);
         let rtol = forcing.rtol(load, change.changes, pb.nodes.len());
+        let linear_before = work.linear;
         let sub = if load {
             loading::load_step(pb, it, work, &schedule, rtol, contact)
         } else {
@@ -127,6 +129,16 @@ pub(crate) fn solve(
             penetration: report.max_penetration,
             phi: it.phi,
         });
+        // After a slow linear solve, unless the level is done: the preconditioner rebuilt
+        // on the new configuration.
+        if verdict == Verdict::Continue
+            && p.refresh_preconditioner
+            && refresh::slow(rtol, work.linear - linear_before)
+            && pb.pre.refresh(pb.model, &it.u, &pb.fixed, pb.params.preconditioner, work)
+        {
+            it.cons = pb.tl().constraints();
+            it.linear.tl = pb.tl().scratch();
+        }
         it.active.settle();
         match verdict {
             Verdict::Continue => {}

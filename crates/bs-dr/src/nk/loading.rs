@@ -88,7 +88,7 @@ pub(crate) fn direction(
         None => it.particular.iter_mut().for_each(|v| *v = Vector3::zeros()),
     }
     it.active.constrain(
-        pb.tl,
+        pb.tl(),
         &mut it.cons,
         &pb.nodes,
         &pb.node_state(&it.u, &it.f),
@@ -102,7 +102,7 @@ pub(crate) fn direction(
         particular: &it.particular,
         springs: &it.springs,
         cons: &it.cons,
-        tl: pb.tl,
+        tl: pb.tl(),
     };
     let max = pb.params.max_linear_iterations;
     linear::solve(&lin, &mut it.linear, &mut it.ws, &mut it.delta, rtol, max, work)?;

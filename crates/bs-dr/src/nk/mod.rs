@@ -6,7 +6,10 @@
 //! Jacobian of the internal forces matrix-free (a forward difference of
 //! [`Model::internal_forces_into`], so every element technology is linearised exactly as its
 //! force kernel) and preconditioning with [`TwoLevel`], which depends only on mesh,
-//! materials and fixed components and is prepared once ([`NewtonKrylov::prepare`]).
+//! materials and fixed components and is prepared once ([`NewtonKrylov::prepare`]). Under
+//! large deformations `K₀` drifts from the tangent: after a slow linear solve with elements
+//! compressed or stretched by more than 40 %, the preconditioner is rebuilt on the current
+//! configuration for the rest of the solve, at most twice ([`refresh`]).
 //!
 //! # Contact
 //!
@@ -68,6 +71,7 @@ mod merit;
 mod outcome;
 mod params;
 mod problem;
+mod refresh;
 mod termination;
 
 use std::time::Instant;
@@ -79,6 +83,7 @@ use self::continuation::Continuation;
 use self::iterate::{Converged, Iterate};
 use self::level::{Level, Start};
 use self::problem::Problem;
+use self::refresh::Preconditioners;
 use crate::contact::{Contact, ContactReport};
 use crate::linalg::twolevel::{Projector, TwoLevel};
 use crate::loads::Loads;
@@ -161,6 +166,8 @@ fn fixed_projector(loads: &Loads) -> Projector {
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct Work {
     pub forces: usize,
+    /// Preconditioner rebuilds on the deformed configuration.
+    pub refreshes: usize,
     pub linear: usize,
     pub iterations: usize,
     pub time: Breakdown,
@@ -247,7 +254,8 @@ impl NewtonKrylov {
     ) -> Result<Solution<NewtonKrylovInfo>, NewtonKrylovError> {
         let start = Instant::now();
         let start_state = warm.as_ref().map(|w| w.state);
-        let pb = Problem::new(&self.params, model, loads, prep, &*contact, start_state)?;
+        let pre = Preconditioners::new(&prep.preconditioner);
+        let pb = Problem::new(&self.params, model, loads, prep, &pre, &*contact, start_state)?;
         let mut work = Work::default();
         let mut it = Iterate::new(&pb, &mut work)?;
         let mut saved = Converged::start(&it);
@@ -325,6 +333,7 @@ impl NewtonKrylov {
                     iterations: work.iterations,
                     load_levels: 0,
                     cutbacks: self.params.continuation.max_cutbacks + 1,
+                    refreshes: work.refreshes,
                     fallback_steps: sol.report.steps,
                     err: sol.report.err,
                     tolerance: pb.tol,
@@ -364,6 +373,7 @@ impl NewtonKrylov {
                 iterations: work.iterations,
                 load_levels: cont.levels,
                 cutbacks: cont.failures,
+                refreshes: work.refreshes,
                 fallback_steps: 0,
                 err: it.err,
                 tolerance: pb.tol,

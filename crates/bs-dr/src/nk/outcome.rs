@@ -21,6 +21,8 @@ pub struct NewtonKrylovInfo {
     pub load_levels: usize,
     /// Failed attempts at a level retried with a smaller increment.
     pub cutbacks: usize,
+    /// Rebuilds of the preconditioner on the deformed configuration.
+    pub refreshes: usize,
     /// Dynamic Relaxation steps of the fallback (0 when it did not run).
     pub fallback_steps: usize,
     /// The last Newton correction `max|Δu|` (length units): the error estimate.
@@ -54,6 +56,7 @@ impl From<NewtonKrylovInfo> for Report {
             continuation: Some(ContinuationSummary {
                 load_levels: i.load_levels,
                 cutbacks: i.cutbacks,
+                refreshes: i.refreshes,
                 fallback_steps: i.fallback_steps,
             }),
         }

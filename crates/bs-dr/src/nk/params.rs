@@ -109,6 +109,10 @@ pub struct NewtonKrylovParams {
     pub line_search: LineSearchParams,
     /// The preconditioner's parameters.
     pub preconditioner: TwoLevelParams,
+    /// Rebuild the preconditioner on the deformed configuration after a slow linear solve
+    /// when the elements have changed volume by more than 40 % (at most twice per solve;
+    /// see `nk::refresh`). Default true.
+    pub refresh_preconditioner: bool,
 }
 
 impl Default for NewtonKrylovParams {
@@ -125,6 +129,7 @@ impl Default for NewtonKrylovParams {
             continuation: ContinuationParams::default(),
             line_search: LineSearchParams::default(),
             preconditioner: TwoLevelParams::default(),
+            refresh_preconditioner: true,
         }
     }
 }

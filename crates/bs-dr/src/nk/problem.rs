@@ -4,6 +4,7 @@
 use bs_mesh::Vector3;
 
 use super::outcome::NewtonKrylovError;
+use super::refresh::Preconditioners;
 use super::{NewtonKrylovParams, Preparation};
 use crate::contact::Contact;
 use crate::linalg::twolevel::{Projector, TwoLevel};
@@ -17,7 +18,8 @@ use super::active_set::NodeState;
 pub(crate) struct Problem<'a> {
     pub model: &'a Model,
     pub loads: &'a Loads,
-    pub tl: &'a TwoLevel,
+    /// The preconditioner in use and the ones a slow solve may still build.
+    pub pre: &'a Preconditioners<'a>,
     /// Nodal compliances `γ_a = 3 / tr K₀,aa`.
     pub gamma: &'a [f64],
     /// The fixed components' projector.
@@ -44,6 +46,7 @@ impl<'a> Problem<'a> {
         model: &'a Model,
         loads: &'a Loads,
         prep: &'a Preparation,
+        pre: &'a Preconditioners<'a>,
         contact: &dyn Contact,
         start: Option<&'a [Vector3<f64>]>,
     ) -> Result<Self, NewtonKrylovError> {
@@ -81,7 +84,7 @@ impl<'a> Problem<'a> {
         Ok(Problem {
             model,
             loads,
-            tl: &prep.preconditioner,
+            pre,
             gamma: &prep.compliance,
             fixed: prep.preconditioner.constraints().projector,
             nodes,
@@ -92,6 +95,11 @@ impl<'a> Problem<'a> {
             load: change(loads, start),
             start,
         })
+    }
+
+    /// The preconditioner in use.
+    pub(crate) fn tl(&self) -> &TwoLevel {
+        self.pre.current()
     }
 
     /// The prescribed value of component `k` of node `a` at load fraction `lambda`: from
