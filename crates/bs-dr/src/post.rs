@@ -37,6 +37,15 @@ impl Model {
             .reduce(|| 1.0, f64::min)
     }
 
+    /// The largest ratio `κ/μ` of bulk to shear modulus of the solids (0 without solids).
+    pub fn max_bulk_to_shear(&self) -> f64 {
+        let ratio = |s: &crate::Solid| {
+            let e = s.material.elastic();
+            if e.mu > 0.0 { e.kappa / e.mu } else { f64::INFINITY }
+        };
+        self.elements.solids.iter().map(ratio).fold(0.0, f64::max)
+    }
+
     /// `J` and von Mises stress of every element for `displacements` (indexed like the
     /// nodes). Uses the element's own deformation gradient (for T4ANP the von Mises stress of
     /// the decoupled laws is unaffected by the nodal pressure averaging, which only changes

@@ -110,8 +110,9 @@ pub struct NewtonKrylovParams {
     /// The preconditioner's parameters.
     pub preconditioner: TwoLevelParams,
     /// Rebuild the preconditioner on the deformed configuration after a slow linear solve
-    /// when the elements have changed volume by more than 40 % (at most twice per solve;
-    /// see `nk::refresh`). Default true.
+    /// when the elements have changed volume by more than 40 % and the material is not
+    /// nearly incompressible (κ/μ ≤ 100; at most twice per solve; see `nk::refresh`).
+    /// Default true.
     pub refresh_preconditioner: bool,
 }
 
