@@ -78,36 +78,35 @@ impl Stencil {
 
     /// `(A x)_i` in double precision.
     pub(super) fn row(&self, i: usize, x: &[[f64; 3]]) -> [f64; 3] {
-        let (d, xi) = (self.diag[i], &x[i]);
-        let mut acc = [d * xi[0], d * xi[1], d * xi[2]];
-        for (a, &q) in self.nb[i].iter().enumerate() {
-            if q != NONE {
-                let (wq, xq) = (self.w[a / 2], &x[q as usize]);
-                for c in 0..3 {
-                    acc[c] -= wq * xq[c];
-                }
-            }
-        }
-        acc
+        row_of(&self.nb[i], self.diag[i], self.w, x, i)
     }
 
     /// `(A x)_i` in single precision.
     pub(super) fn row32(&self, i: usize, x: &[[f32; 3]]) -> [f32; 3] {
-        let (d, xi) = (self.diag32[i], &x[i]);
-        let mut acc = [d * xi[0], d * xi[1], d * xi[2]];
-        for (a, &q) in self.nb[i].iter().enumerate() {
-            if q != NONE {
-                let (wq, xq) = (self.w32[a / 2], &x[q as usize]);
-                for c in 0..3 {
-                    acc[c] -= wq * xq[c];
-                }
-            }
-        }
-        acc
+        row_of(&self.nb[i], self.diag32[i], self.w32, x, i)
     }
 
     /// Unknowns.
     pub(super) fn len(&self) -> usize {
         self.nb.len()
     }
+}
+
+/// `d x_i − Σ w x_neighbour` over the free neighbours `nb` of unknown `i`.
+#[inline(always)]
+fn row_of<T>(nb: &[u32; 6], d: T, w: [T; 3], x: &[[T; 3]], i: usize) -> [T; 3]
+where
+    T: Copy + std::ops::Mul<Output = T> + std::ops::SubAssign,
+{
+    let xi = &x[i];
+    let mut acc = [d * xi[0], d * xi[1], d * xi[2]];
+    for (a, &q) in nb.iter().enumerate() {
+        if q != NONE {
+            let (wq, xq) = (w[a / 2], &x[q as usize]);
+            for c in 0..3 {
+                acc[c] -= wq * xq[c];
+            }
+        }
+    }
+    acc
 }

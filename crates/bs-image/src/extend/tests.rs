@@ -60,13 +60,7 @@ fn the_discrete_laplacian_vanishes_at_every_free_voxel_of_a_shell() {
     // A spherical shell between a ball (fixed, a rotation-like field) and the far
     // region (fixed 0) on an anisotropic grid: the residual of the weighted 7-point
     // Laplacian at every free voxel is at the solver's tolerance.
-    let grid = Grid::axis_aligned([24, 20, 16], [1.0, 1.2, 1.5], [-11.5, -11.4, -11.25]).unwrap();
-    let r = |n: usize| grid.world(idx(&grid, n)).coords.norm();
-    let free: Vec<bool> = (0..grid.len()).map(|n| (5.0..10.0).contains(&r(n))).collect();
-    let f = |n: usize| {
-        let p = grid.world(idx(&grid, n));
-        if r(n) < 5.0 { [p.y, -p.x, 0.5] } else { [0.0; 3] }
-    };
+    let (grid, free, f) = shell();
     let ext = harmonic_extension(
         &grid,
         &free,
