@@ -54,6 +54,11 @@ pub(crate) fn solve(
 ) -> Result<Level, NewtonKrylovError> {
     let p = pb.params;
     let c = &p.continuation;
+    // A preconditioner rebuilt during the last level does not serve this one.
+    if pb.pre.reset() {
+        it.cons = pb.tl().constraints();
+        it.linear.tl = pb.tl().scratch();
+    }
     let mut applied = start.done;
     let mut warm = false;
     if let Some((before, s)) = start.secant
