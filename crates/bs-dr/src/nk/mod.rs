@@ -9,7 +9,7 @@
 //! materials and fixed components and is prepared once ([`NewtonKrylov::prepare`]). Under
 //! large deformations `K₀` drifts from the tangent: after a slow linear solve with elements
 //! compressed or stretched by more than 40 %, the preconditioner is rebuilt on the current
-//! configuration for the rest of the solve, at most twice ([`refresh`]).
+//! configuration for the rest of the load level, at most twice per solve ([`refresh`]).
 //!
 //! # Contact
 //!

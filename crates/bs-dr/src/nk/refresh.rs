@@ -4,9 +4,9 @@
 //! (12 iterations per Newton iteration against 7 at 8 mm). A linear solve that converged
 //! slowly then triggers a rebuild on the current configuration (`K₀` with the gradients and
 //! volumes at `X + u`, `crate::assembly::stiffness::linear_stiffness_at`), kept for the
-//! rest of the solve. Measured on the MNI152 brain pushed from 20 to 21 mm: 117 → 70 GMRES
-//! iterations; from 7 to 8 mm the rebuilt one is no better (54 → 59), which is why it
-//! waits for a slow solve instead of running every iteration.
+//! rest of its load level. Measured on the MNI152 brain pushed from 20 to 21 mm: 117 → 70
+//! GMRES iterations; from 7 to 8 mm the rebuilt one is no better (54 → 59), which is why
+//! it waits for a slow solve instead of running every iteration.
 
 use std::cell::{Cell, OnceCell};
 use std::time::Instant;
