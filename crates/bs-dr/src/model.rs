@@ -305,12 +305,11 @@ impl Model {
         linear_stiffness(&self.elements)
     }
 
-    /// `K₀` on the deformed configuration `X + u` (see
+    /// `K₀` on the configuration with the nodes at `x` (see
     /// [`crate::assembly::stiffness::linear_stiffness_at`]); `None` with hexahedra or an
-    /// element inverted at `u`.
-    pub(crate) fn linear_stiffness_at(&self, u: &[Vector3<f64>]) -> Option<NodalMatrix> {
-        let x: Vec<Point3<f64>> = self.reference.iter().zip(u).map(|(p, d)| p + d).collect();
-        crate::assembly::stiffness::linear_stiffness_at(&self.elements, &x)
+    /// element inverted at `x`.
+    pub(crate) fn linear_stiffness_at(&self, x: &[Point3<f64>]) -> Option<NodalMatrix> {
+        crate::assembly::stiffness::linear_stiffness_at(&self.elements, x)
     }
 
     /// Scratch buffers sized for this model.

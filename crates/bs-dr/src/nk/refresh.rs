@@ -106,10 +106,10 @@ impl<'a> Preconditioners<'a> {
             work.time.preconditioner += t.elapsed();
             return false;
         }
-        let built = model.linear_stiffness_at(u).and_then(|k| {
-            let x: Vec<Point3<f64>> = model.reference().iter().zip(u).map(|(p, d)| p + d).collect();
-            TwoLevel::new(k, &x, model.mean_edge(), fixed, params).ok()
-        });
+        let x: Vec<Point3<f64>> = model.reference().iter().zip(u).map(|(p, d)| p + d).collect();
+        let built = model
+            .linear_stiffness_at(&x)
+            .and_then(|k| TwoLevel::new(k, &x, model.mean_edge(), fixed, params).ok());
         work.time.preconditioner += t.elapsed();
         match built {
             Some(tl) => {
