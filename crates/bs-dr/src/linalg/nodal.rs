@@ -23,13 +23,6 @@ pub struct NodalScratch {
     terms: Vec<f64>,
 }
 
-impl NodalScratch {
-    /// One value per nodal term.
-    pub(crate) fn terms_mut(&mut self) -> &mut [f64] {
-        &mut self.terms
-    }
-}
-
 impl NodalMatrix {
     /// Scratch buffers for [`mul`](Self::mul).
     pub fn scratch(&self) -> NodalScratch {

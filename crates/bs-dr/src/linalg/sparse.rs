@@ -9,7 +9,7 @@ use bs_mesh::Vector3;
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
-use crate::kernels::simd::{BlockOp, Lanes, dispatch};
+use crate::kernels::simd::Lanes;
 
 /// Nodes per rayon task in the row-parallel kernels.
 const MIN_ROWS: usize = 256;
@@ -186,97 +186,8 @@ impl RankOneSum {
     }
 }
 
-/// [`BlockCsr`] with single-precision blocks stored by column, each column padded to four
-/// lanes: a block times a vector is three fused multiply-adds on four f64 lanes (after an
-/// exact widening), and half the memory traffic of double-precision blocks. Vectors and
-/// sums stay in double precision. The products run on [`crate::kernels::simd`]'s lanes.
-#[derive(Debug, Clone, Default)]
-pub struct BlockCsr32 {
-    ptr: Vec<u32>,
-    col: Vec<u32>,
-    val: Vec<[[f32; 4]; 3]>,
-}
-
-impl From<&BlockCsr> for BlockCsr32 {
-    fn from(a: &BlockCsr) -> Self {
-        let val = a
-            .val
-            .iter()
-            .map(|m| {
-                std::array::from_fn(|c| [m[(0, c)] as f32, m[(1, c)] as f32, m[(2, c)] as f32, 0.0])
-            })
-            .collect();
-        BlockCsr32 { ptr: a.ptr.clone(), col: a.col.clone(), val }
-    }
-}
-
-impl BlockCsr32 {
-    /// Row `r` of `A x` on lanes `l` (lane 3 is zero).
-    #[inline(always)]
-    pub(crate) fn row_lanes<L: Lanes>(&self, l: L, r: usize, x: &[Vector3<f64>]) -> L::V {
-        let (lo, hi) = (self.ptr[r] as usize, self.ptr[r + 1] as usize);
-        let mut acc = l.splat(0.0);
-        for (m, &c) in self.val[lo..hi].iter().zip(&self.col[lo..hi]) {
-            let v = &x[c as usize];
-            acc = l.mul_add(l.load_f32(m[0]), l.splat(v.x), acc);
-            acc = l.mul_add(l.load_f32(m[1]), l.splat(v.y), acc);
-            acc = l.mul_add(l.load_f32(m[2]), l.splat(v.z), acc);
-        }
-        acc
-    }
-
-    /// `y = A x`.
-    pub fn mul(&self, x: &[Vector3<f64>], y: &mut [Vector3<f64>]) {
-        y.par_chunks_mut(MIN_ROWS).enumerate().for_each(|(k, ys)| {
-            dispatch(Rows {
-                a: self,
-                nodal: None,
-                terms: &[],
-                x,
-                out: ys,
-                start: k * MIN_ROWS,
-                then: |_: usize, o: &mut Vector3<f64>, v: Vector3<f64>| *o = v,
-            })
-        });
-    }
-}
-
-/// One chunk of rows of `A x` (+ the rows of a [`RankOneSum32`]'s `Cᵀ s`), each combined
-/// into its output by `then(row, out, value)`: the kernel of the fused operator products.
-pub(crate) struct Rows<'a, F> {
-    /// The block matrix.
-    pub a: &'a BlockCsr32,
-    /// The nodal rank-one terms, if any, with their projected values `s`.
-    pub nodal: Option<&'a RankOneSum32>,
-    /// `W C x` of the nodal terms.
-    pub terms: &'a [f64],
-    /// The vector multiplied.
-    pub x: &'a [Vector3<f64>],
-    /// The chunk of the output.
-    pub out: &'a mut [Vector3<f64>],
-    /// Row of `out[0]`.
-    pub start: usize,
-    /// How each row value lands in its output.
-    pub then: F,
-}
-
-impl<F: Fn(usize, &mut Vector3<f64>, Vector3<f64>)> BlockOp for Rows<'_, F> {
-    type Output = ();
-    #[inline(always)]
-    fn run<L: Lanes>(self, l: L) {
-        for (i, o) in self.out.iter_mut().enumerate() {
-            let r = self.start + i;
-            let mut acc = self.a.row_lanes(l, r, self.x);
-            if let Some(n) = self.nodal {
-                acc = n.expand_row_lanes(l, r, self.terms, acc);
-            }
-            let v = l.store(acc);
-            (self.then)(r, o, Vector3::new(v[0], v[1], v[2]));
-        }
-    }
-}
-
-/// [`RankOneSum`] with single-precision entries padded to four lanes (see [`BlockCsr32`]).
+/// [`RankOneSum`] with single-precision entries padded to four lanes: an entry times a value
+/// is one fused multiply-add on four f64 lanes after an exact widening.
 #[derive(Debug, Clone, Default)]
 pub struct RankOneSum32 {
     weight: Vec<f64>,

@@ -7,11 +7,9 @@ use faer::sparse::linalg::cholesky::LltRef;
 use faer::{Conj, MatMut, Par};
 use rayon::prelude::*;
 
+use super::operator::OperatorScratch;
 use super::projector::{Constraints, Projector};
 use super::setup::TwoLevel;
-use crate::kernels::simd::dispatch;
-use crate::linalg::nodal::NodalScratch;
-use crate::linalg::sparse::Rows;
 
 /// Nodes per rayon task in the cycle's passes: few enough tasks that the fork-join overhead
 /// stays small next to the work of a pass.
@@ -23,7 +21,7 @@ pub struct TwoLevelScratch {
     d: Vec<Vector3<f64>>,
     t: Vec<Vector3<f64>>,
     e: Vec<Vector3<f64>>,
-    k: NodalScratch,
+    k: OperatorScratch,
     coarse: Vec<f64>,
     mem: MemBuffer,
 }
@@ -47,42 +45,25 @@ impl TwoLevel {
             d: vec![Vector3::zeros(); n],
             t: vec![Vector3::zeros(); n],
             e: vec![Vector3::zeros(); n],
-            k: self.k.scratch(),
+            k: self.op32.scratch(),
             coarse: vec![0.0; nc],
             mem: MemBuffer::new(self.coarse.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq)),
         }
     }
 
-    /// `f(a, (Π K₀ x)_a)` for every node `a`, in one pass over the rows after the nodal
-    /// terms' pass (single-precision operator; `x` in the range of `Π`).
+    /// `f(a, (Π K₀ x)_a)` for every node `a` (single-precision operator; `x` in the range
+    /// of `Π`).
     fn op_with(
         &self,
         pi: &Projector,
         x: &[Vector3<f64>],
-        s: &mut NodalScratch,
+        s: &mut OperatorScratch,
         out: &mut [Vector3<f64>],
         f: impl Fn(usize, &mut Vector3<f64>, Vector3<f64>) + Sync,
     ) {
-        if let Some(nodal) = &self.op32.nodal {
-            nodal.project_into(x, s.terms_mut());
-        }
-        let terms: &[f64] = s.terms_mut();
-        let nodal = self.op32.nodal.as_ref();
-        let elements = &self.op32.assembled;
-        let f = &f;
-        out.par_chunks_mut(ROWS).enumerate().for_each(|(k, chunk)| {
-            dispatch(Rows {
-                a: elements,
-                nodal,
-                terms,
-                x,
-                out: chunk,
-                start: k * ROWS,
-                then: |a: usize, o: &mut Vector3<f64>, y: Vector3<f64>| {
-                    let y = if pi.constrained[a] { pi.matrix[a] * y } else { y };
-                    f(a, o, y);
-                },
-            })
+        self.op32.apply_with(x, s, out, |a, o, y| {
+            let y = if pi.constrained[a] { pi.matrix[a] * y } else { y };
+            f(a, o, y);
         });
     }
 
@@ -95,7 +76,7 @@ impl TwoLevel {
         x: &mut [Vector3<f64>],
         d: &mut [Vector3<f64>],
         t: &mut [Vector3<f64>],
-        s: &mut NodalScratch,
+        s: &mut OperatorScratch,
     ) {
         let hi = self.lambda_max;
         let lo = hi * self.params.lower;

@@ -19,11 +19,13 @@
 //! computed once, before the loads are known.
 //!
 //! Files: [`params`] (parameters, errors), [`projector`] (the nodal constraints), [`rows`]
-//! (nodal sparse rows and their products), [`coarse`] (aggregates, Galerkin factor),
+//! (nodal sparse rows and their products), [`operator`] (`K₀` fused in single precision for
+//! the smoother), [`coarse`] (aggregates, Galerkin factor),
 //! [`setup`] (building the preconditioner), [`cycle`] (applying it).
 
 pub mod coarse;
 pub mod cycle;
+pub(crate) mod operator;
 pub mod params;
 pub mod projector;
 pub mod rows;

@@ -7,23 +7,18 @@ use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 use super::coarse::{Coarse, galerkin, tentative_prolongator};
+use super::operator::Operator32;
 use super::params::{TwoLevelError, TwoLevelParams};
 use super::projector::{Constraints, Projector, projected_inverse};
 use super::rows::{NodeRows, product, tentative_columns, transpose};
 use crate::linalg::nodal::{NodalMatrix, NodalScratch};
-use crate::linalg::sparse::{BlockCsr32, RankOneSum32, max_abs};
-
-/// `K₀` in single precision: the operator of the smoother.
-#[derive(Debug)]
-pub(super) struct Operator32 {
-    pub(super) assembled: BlockCsr32,
-    pub(super) nodal: Option<RankOneSum32>,
-}
+use crate::linalg::sparse::max_abs;
 
 /// The two-level preconditioner of `K₀` (see the module documentation).
 #[derive(Debug)]
 pub struct TwoLevel {
     pub(super) k: NodalMatrix,
+    /// `K₀` in single precision: the operator of the smoother.
     pub(super) op32: Operator32,
     pub(super) params: TwoLevelParams,
     /// The constraints it was built with (the fixed components).
@@ -68,10 +63,7 @@ impl TwoLevel {
         let kp = product(&k, &p);
         let coarse = galerkin(&pt, &kp, nc)?;
         let fixed = Constraints { projector: fixed.clone(), inv_diag };
-        let op32 = Operator32 {
-            assembled: BlockCsr32::from(&k.assembled),
-            nodal: k.nodal.as_ref().map(RankOneSum32::from),
-        };
+        let op32 = Operator32::new(&k);
         Ok(TwoLevel { k, op32, params, fixed, lambda_max, p, pt, coarse })
     }
 
