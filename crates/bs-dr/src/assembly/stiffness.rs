@@ -22,7 +22,7 @@ use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 use crate::linalg::nodal::NodalMatrix;
-use crate::linalg::sparse::{BlockCsr, RankOneSum};
+use crate::linalg::sparse::{BlockCsr, RankOneSum, split_rows};
 
 use super::elements::Elements;
 use crate::element::Tet;
@@ -98,18 +98,6 @@ fn adjacency(elements: &Elements) -> Vec<Vec<u32>> {
         row.dedup();
     });
     adjacency
-}
-
-/// The rows of a block matrix's values as disjoint mutable slices (for row-parallel fills).
-fn split_rows<'a>(ptr: &[u32], val: &'a mut [Matrix3<f64>]) -> Vec<&'a mut [Matrix3<f64>]> {
-    let mut rest = val;
-    let mut out = Vec::with_capacity(ptr.len() - 1);
-    for w in ptr.windows(2) {
-        let (head, tail) = rest.split_at_mut((w[1] - w[0]) as usize);
-        out.push(head);
-        rest = tail;
-    }
-    out
 }
 
 /// The T4ANP nodal volumetric term `Σ_n (V_n κ̄_n / 4) c_n c_nᵀ` (see the module docs).

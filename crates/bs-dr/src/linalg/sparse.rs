@@ -44,6 +44,18 @@ pub fn axpy(alpha: f64, x: &[Vector3<f64>], y: &mut [Vector3<f64>]) {
     y.par_iter_mut().zip(x.par_iter()).with_min_len(CHUNK).for_each(|(b, a)| *b += a * alpha);
 }
 
+/// `data` cut into the rows of the offsets `ptr` (disjoint mutable slices).
+pub(crate) fn split_rows<'a, T>(ptr: &[u32], data: &'a mut [T]) -> Vec<&'a mut [T]> {
+    let mut rest = data;
+    let mut out = Vec::with_capacity(ptr.len().saturating_sub(1));
+    for w in ptr.windows(2) {
+        let (head, tail) = std::mem::take(&mut rest).split_at_mut((w[1] - w[0]) as usize);
+        out.push(head);
+        rest = tail;
+    }
+    out
+}
+
 /// A symmetric sparse matrix of 3×3 blocks in compressed rows, both triangles stored
 /// (rows are independent, so the product is parallel and deterministic).
 #[derive(Debug, Clone, Default)]

@@ -20,7 +20,7 @@ use rayon::prelude::*;
 
 use crate::kernels::simd::{BlockOp, Lanes, dispatch};
 use crate::linalg::nodal::NodalMatrix;
-use crate::linalg::sparse::{RankOneSum, RankOneSum32};
+use crate::linalg::sparse::{RankOneSum, RankOneSum32, split_rows};
 
 /// Nodes per rayon task of the passes.
 const ROWS: usize = 2048;
@@ -56,47 +56,63 @@ impl Operator32 {
         let n = e.rows();
         let mut rows: Vec<[[f32; 4]; 3]> = e
             .val
-            .iter()
+            .par_iter()
             .map(|m| {
                 std::array::from_fn(|i| [m[(i, 0)] as f32, m[(i, 1)] as f32, m[(i, 2)] as f32, 0.0])
             })
             .collect();
+        let (ptr, col) = (e.ptr.clone(), e.col.clone());
         let Some(nodal) = &k.nodal else {
             return Operator32 {
-                ptr: e.ptr.clone(),
-                col: e.col.clone(),
+                ptr,
+                col,
                 rows,
                 proj: Vec::new(),
                 weight: Vec::new(),
                 extra: None,
             };
         };
-        let mut proj = vec![[0.0f32; 4]; e.col.len()];
-        let mut weight = vec![0.0; n];
-        let mut extra_terms = Vec::new();
-        for t in 0..nodal.terms() {
-            let (lo, hi) = (nodal.c_ptr[t] as usize, nodal.c_ptr[t + 1] as usize);
-            let entries = &nodal.c_col[lo..hi];
-            let fits = t < n && entries.iter().all(|&m| e.find(t, m as usize).is_some());
-            if !fits {
-                extra_terms.push(t);
-                continue;
-            }
-            weight[t] = nodal.weight[t];
-            for (&m, v) in entries.iter().zip(&nodal.c_val[lo..hi]) {
-                let m = m as usize;
-                let v = [v.x as f32, v.y as f32, v.z as f32];
-                // Row t of C into slot (t, m); row m of Cᵀ into slot (m, t).
-                let k = e.find(t, m).expect("checked above");
-                proj[k] = [v[0], v[1], v[2], 0.0];
-                let k = e.find(m, t).expect("the pattern is symmetric");
-                for (i, r) in rows[k].iter_mut().enumerate() {
-                    r[3] = v[i];
+        // A node's own term fits when its support lies in the node's row of E.
+        let fits: Vec<bool> = (0..nodal.terms())
+            .into_par_iter()
+            .map(|t| {
+                let (lo, hi) = (nodal.c_ptr[t] as usize, nodal.c_ptr[t + 1] as usize);
+                t < n && nodal.c_col[lo..hi].iter().all(|&m| e.find(t, m as usize).is_some())
+            })
+            .collect();
+        let f32s = |v: &Vector3<f64>| [v.x as f32, v.y as f32, v.z as f32];
+        // Row t of C into the slots of row t.
+        let mut proj = vec![[0.0f32; 4]; col.len()];
+        let mut slots = split_rows(&ptr, &mut proj);
+        slots.par_iter_mut().enumerate().with_min_len(256).filter(|(t, _)| fits[*t]).for_each(
+            |(t, row)| {
+                let (lo, hi) = (nodal.c_ptr[t] as usize, nodal.c_ptr[t + 1] as usize);
+                for (&m, v) in nodal.c_col[lo..hi].iter().zip(&nodal.c_val[lo..hi]) {
+                    let k = e.find(t, m as usize).expect("checked by fits") - ptr[t] as usize;
+                    let [x, y, z] = f32s(v);
+                    row[k] = [x, y, z, 0.0];
+                }
+            },
+        );
+        // Row m of Cᵀ into lane 3 of the slots of row m.
+        let mut slots = split_rows(&ptr, &mut rows);
+        slots.par_iter_mut().enumerate().with_min_len(256).for_each(|(m, row)| {
+            let (lo, hi) = (nodal.t_ptr[m] as usize, nodal.t_ptr[m + 1] as usize);
+            for (&t, v) in nodal.t_col[lo..hi].iter().zip(&nodal.t_val[lo..hi]) {
+                if fits[t as usize] {
+                    let k =
+                        e.find(m, t as usize).expect("the pattern is symmetric") - ptr[m] as usize;
+                    let v = f32s(v);
+                    for (i, r) in row[k].iter_mut().enumerate() {
+                        r[3] = v[i];
+                    }
                 }
             }
-        }
+        });
+        let weight = (0..n).map(|t| if fits[t] { nodal.weight[t] } else { 0.0 }).collect();
+        let extra_terms: Vec<usize> = (0..nodal.terms()).filter(|&t| !fits[t]).collect();
         let extra = (!extra_terms.is_empty()).then(|| extra_sum(nodal, &extra_terms, n));
-        Operator32 { ptr: e.ptr.clone(), col: e.col.clone(), rows, proj, weight, extra }
+        Operator32 { ptr, col, rows, proj, weight, extra }
     }
 
     /// Scratch buffers for [`apply_with`](Self::apply_with).

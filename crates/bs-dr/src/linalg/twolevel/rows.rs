@@ -4,7 +4,7 @@
 use bs_mesh::Vector3;
 use rayon::prelude::*;
 
-use crate::linalg::nodal::NodalMatrix;
+use crate::linalg::sparse::{BlockCsr, RankOneSum, split_rows};
 
 /// A sparse matrix with one row per node (three scalar rows) and scalar columns: row `a`
 /// holds `(column, 3-vector)` entries.
@@ -16,19 +16,28 @@ pub(crate) struct NodeRows {
 }
 
 impl NodeRows {
+    /// The rows in compressed form (copied in parallel, row by row).
     pub(crate) fn from_rows(rows: Vec<Vec<(u32, Vector3<f64>)>>) -> Self {
         let mut ptr = Vec::with_capacity(rows.len() + 1);
-        ptr.push(0);
-        let total = rows.iter().map(Vec::len).sum();
-        let mut col = Vec::with_capacity(total);
-        let mut val = Vec::with_capacity(total);
-        for r in rows {
-            for (c, v) in r {
-                col.push(c);
-                val.push(v);
-            }
-            ptr.push(col.len() as u32);
+        ptr.push(0u32);
+        for r in &rows {
+            ptr.push(ptr[ptr.len() - 1] + r.len() as u32);
         }
+        let total = ptr[rows.len()] as usize;
+        let mut col = vec![0u32; total];
+        let mut val = vec![Vector3::zeros(); total];
+        let mut cols = split_rows(&ptr, &mut col);
+        let mut vals = split_rows(&ptr, &mut val);
+        rows.into_par_iter()
+            .zip(cols.par_iter_mut())
+            .zip(vals.par_iter_mut())
+            .with_min_len(256)
+            .for_each(|((r, c), v)| {
+                for (k, (j, x)) in r.into_iter().enumerate() {
+                    c[k] = j;
+                    v[k] = x;
+                }
+            });
         NodeRows { ptr, col, val }
     }
 
@@ -82,23 +91,34 @@ pub(crate) fn tentative_columns(p: &NodeRows) -> usize {
     p.col.iter().map(|&c| c as usize + 1).max().unwrap_or(0)
 }
 
-/// `Pᵀ` as per-column rows of `(node, 3-vector)`.
+/// `Pᵀ` as per-column rows of `(node, 3-vector)`, nodes increasing (a counting sort).
 pub(crate) fn transpose(p: &NodeRows, nc: usize) -> NodeRows {
-    let mut rows: Vec<Vec<(u32, Vector3<f64>)>> = vec![Vec::new(); nc];
+    let mut ptr = vec![0u32; nc + 1];
+    for &c in &p.col {
+        ptr[c as usize + 1] += 1;
+    }
+    for i in 0..nc {
+        ptr[i + 1] += ptr[i];
+    }
+    let mut fill = ptr.clone();
+    let mut col = vec![0u32; p.col.len()];
+    let mut val = vec![Vector3::zeros(); p.col.len()];
     for a in 0..p.rows() {
         let (cols, vals) = p.row(a);
         for (&c, v) in cols.iter().zip(vals) {
-            rows[c as usize].push((a as u32, *v));
+            let k = fill[c as usize] as usize;
+            col[k] = a as u32;
+            val[k] = *v;
+            fill[c as usize] += 1;
         }
     }
-    NodeRows::from_rows(rows)
+    NodeRows { ptr, col, val }
 }
 
-/// `K₀ P` (node rows).
-pub(crate) fn product(k: &NodalMatrix, p: &NodeRows) -> NodeRows {
+/// `K₀ P` (node rows) of `K₀ = E + Cᵀ W C` (`nodal` the rank-one part, if any).
+pub(crate) fn product(e: &BlockCsr, nodal: Option<&RankOneSum>, p: &NodeRows) -> NodeRows {
     let n = p.rows();
     let nc = tentative_columns(p);
-    let e = &k.assembled;
     let mut rows: Vec<Vec<(u32, Vector3<f64>)>> = (0..n)
         .into_par_iter()
         .with_min_len(128)
@@ -116,7 +136,7 @@ pub(crate) fn product(k: &NodalMatrix, p: &NodeRows) -> NodeRows {
             },
         )
         .collect();
-    if let Some(nodal) = &k.nodal {
+    if let Some(nodal) = nodal {
         // Q = C P (one sparse scalar row per term), then Cᵀ W Q.
         let q: Vec<Vec<(u32, f64)>> = (0..nodal.terms())
             .into_par_iter()
@@ -152,4 +172,49 @@ pub(crate) fn product(k: &NodalMatrix, p: &NodeRows) -> NodeRows {
         );
     }
     NodeRows::from_rows(rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 5-node, 4-column matrix with rows of different lengths (one empty).
+    fn sample() -> NodeRows {
+        let v = |a: f64| Vector3::new(a, -a, 2.0 * a);
+        NodeRows::from_rows(vec![
+            vec![(0, v(1.0)), (3, v(2.0))],
+            vec![],
+            vec![(1, v(3.0)), (2, v(4.0)), (3, v(5.0))],
+            vec![(0, v(6.0))],
+            vec![(2, v(7.0))],
+        ])
+    }
+
+    #[test]
+    fn rows_are_stored_as_given() {
+        let p = sample();
+        assert_eq!(p.ptr, vec![0, 2, 2, 5, 6, 7]);
+        assert_eq!(p.row(2).0, &[1, 2, 3]);
+        assert_eq!(p.row(2).1[1], Vector3::new(4.0, -4.0, 8.0));
+        assert!(p.row(1).0.is_empty());
+    }
+
+    #[test]
+    fn the_transpose_holds_every_entry_once_with_nodes_increasing() {
+        let p = sample();
+        let pt = transpose(&p, tentative_columns(&p));
+        assert_eq!(pt.rows(), 4);
+        let mut count = 0;
+        for c in 0..4 {
+            let (nodes, vals) = pt.row(c);
+            assert!(nodes.windows(2).all(|w| w[0] < w[1]));
+            for (&a, v) in nodes.iter().zip(vals) {
+                let (cols, pv) = p.row(a as usize);
+                let k = cols.iter().position(|&j| j as usize == c).expect("entry of P");
+                assert_eq!(pv[k], *v);
+                count += 1;
+            }
+        }
+        assert_eq!(count, p.col.len());
+    }
 }
