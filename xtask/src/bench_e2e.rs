@@ -16,6 +16,13 @@
 //! * and, per case, the speed-up of the solve against the baseline and the difference
 //!   between the two answers.
 //!
+//! A last case, the MNI152 brain meshed at 3 mm by the mesher (`brainshift mesh
+//! fixtures/mni152/mask.nii.gz --size 3 --craniotomy`: 852k tetrahedra, 152k nodes; the scene
+//! is written once into `target/bench-e2e/`), runs Newton–Krylov only (DR would take tens of
+//! minutes there) and has no CalculiX column (its craniotomy is the mesher's, not the
+//! fixture's). It measures how the solve grows with the mesh: its solve time and GMRES
+//! iterations as multiples of the default mesh's, same run.
+//!
 //! The table is printed and written into `docs/benchmarks.md` between its `e2e` markers.
 
 use std::path::{Path, PathBuf};
@@ -37,6 +44,22 @@ const CASES: [(&str, &str, &str); 5] = [
     ("mni152 default", "fixtures/mni152/scene.toml", "mni152"),
     ("mni152 fine", "fixtures/mni152/scene-fine.toml", "mni152"),
 ];
+
+/// The generated case (see the module documentation): name and element size (mm).
+const LARGE: (&str, f64) = ("mni152 852k (mesher, 3 mm)", 3.0);
+
+/// The scene of [`LARGE`], meshed on first use.
+fn large_scene() -> Result<PathBuf, String> {
+    let dir = root().join("target/bench-e2e/mni152-size3");
+    let scene = dir.join("scene.toml");
+    if !scene.exists() {
+        let params = bs_scene::mesh_scene::MeshParams { size: LARGE.1, ..Default::default() };
+        let mask = root().join("fixtures/mni152/mask.nii.gz");
+        bs_scene::mesh_scene::mesh_to_scene(&mask, &dir, &params, true)
+            .map_err(|e| format!("meshing {}: {e}", mask.display()))?;
+    }
+    Ok(scene)
+}
 
 /// One run, as a child reports it.
 #[derive(Debug, Clone)]
@@ -92,12 +115,21 @@ fn ccx_field(p: &Prepared, ccx_case: &str) -> Result<Option<Vec<Vector3<f64>>>, 
 
 /// The child: one case with one solver; prints one line of key=value pairs.
 fn run_one(case: &str, solver: &str, out: &Path) -> Result<(), String> {
-    let (_, scene, ccx_case) =
-        CASES.iter().find(|c| c.0 == case).ok_or_else(|| format!("unknown case {case}"))?;
-    let p = Prepared::load(&root().join(scene)).map_err(|e| e.to_string())?;
+    let (scene, ccx_case) = if case == LARGE.0 {
+        (large_scene()?, None)
+    } else {
+        let (_, scene, ccx) =
+            CASES.iter().find(|c| c.0 == case).ok_or_else(|| format!("unknown case {case}"))?;
+        (root().join(scene), Some(*ccx))
+    };
+    let p = Prepared::load(&scene).map_err(|e| e.to_string())?;
     let v = Variant { solver: Some(solver_kind(solver)?), ..Variant::default() };
     let o = v.solve(&p).map_err(|e| format!("{case} {solver}: {e}"))?;
-    let (ccx_mean, ccx_max) = match ccx_field(&p, ccx_case)? {
+    let reference = match ccx_case {
+        Some(c) => ccx_field(&p, c)?,
+        None => None,
+    };
+    let (ccx_mean, ccx_max) = match reference {
         Some(u) => difference(&o.displacements, &u, None),
         None => (f64::NAN, f64::NAN),
     };
@@ -232,7 +264,17 @@ pub fn main(args: &[String]) -> Result<(), String> {
             difference(&read_field(&dr.displacements)?, &read_field(&nk.displacements)?, None);
         rows.push((case, dr, nk, mean, max));
     }
-    let table = markdown(&rows);
+    let mut table = markdown(&rows);
+    if only.as_deref().is_none_or(|o| o == LARGE.0) {
+        let out = tmp.join("large.csv");
+        let large = spawn(LARGE.0, "newton-krylov", &out)?;
+        println!(
+            "  {:<20} {:<14} prepare {:>7.3} s  solve {:>8.3} s  {:>5} iterations",
+            LARGE.0, "newton-krylov", large.prepare, large.solve, large.iterations
+        );
+        let default = rows.iter().find(|r| r.0 == "mni152 default").map(|r| &r.2);
+        table.push_str(&large_row(&large, default));
+    }
     println!("\n{table}");
     if only.is_none() {
         replace_block(&root().join("docs/benchmarks.md"), "e2e", &table)?;
@@ -240,6 +282,32 @@ pub fn main(args: &[String]) -> Result<(), String> {
     }
     let _ = std::fs::remove_dir_all(&tmp);
     Ok(())
+}
+
+/// The row of [`LARGE`] (Newton–Krylov only), with its solve time and GMRES iterations as
+/// multiples of the default mesh's Newton–Krylov run of the same benchmark.
+fn large_row(r: &Run, default: Option<&Run>) -> String {
+    let growth = default.map_or_else(String::new, |d| {
+        format!(
+            "{:.1}× the default mesh's solve, {:.2}× its GMRES its ({:.1}× its elements)",
+            r.solve / d.solve,
+            r.linear as f64 / d.linear as f64,
+            r.elements as f64 / d.elements as f64
+        )
+    });
+    format!(
+        "| {} | {} / {} | newton-krylov | {:.3} | {:.3} | {} | {} | {} | — | {:.1e} | {:.0} | {growth} | DR not run |\n",
+        LARGE.0,
+        r.nodes,
+        r.elements,
+        r.prepare,
+        r.solve,
+        r.iterations,
+        r.forces,
+        r.linear,
+        r.penetration,
+        r.peak_mib,
+    )
 }
 
 fn markdown(rows: &[(&str, Run, Run, f64, f64)]) -> String {

@@ -74,7 +74,8 @@ Commands:
                   against reading the image and a naive per-voxel TetLocator loop (release)
   bench e2e       [--case NAME] [--repeat N] every contact fixture solved by DR (baseline) and
                   Newton-Krylov (default): preparation, solve, iterations, accuracy against
-                  CalculiX, peak memory, speed-up (writes docs/benchmarks.md)
+                  CalculiX, peak memory, speed-up; then the 852k-tet MNI152 mesh (mesher,
+                  3 mm; Newton-Krylov only) against the default mesh (writes docs/benchmarks.md)
   bench update    [--scene S] the MNI152 craniotomy measured at 1..8 mm: eight updates of a live session,
                   each warm from the last, against cold solves of the same loads; the warped
                   T1 after each; peak memory (release)
