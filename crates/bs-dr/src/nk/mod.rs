@@ -195,11 +195,10 @@ impl NewtonKrylov {
         let (x, h) = (model.reference(), model.mean_edge());
         let preconditioner = TwoLevel::new(k0, x, h, &fixed, self.params.preconditioner)
             .map_err(|e| NewtonKrylovError::Preconditioner { reason: e.to_string() })?;
-        let k = preconditioner.stiffness();
         let compliance = (0..n)
             .into_par_iter()
             .map(|a| {
-                let tr = k.diagonal(a).trace();
+                let tr = preconditioner.diagonal(a).trace();
                 if tr > 0.0 { 3.0 / tr } else { 0.0 }
             })
             .collect();

@@ -196,7 +196,8 @@ mod tests {
             *p += d;
         }
         let deformed = Model::uniform(&mesh, model.elements.solids[0], model.options()).unwrap();
-        let (k, expect) = (pre.current().stiffness(), deformed.linear_stiffness());
+        let x: Vec<Point3<f64>> = model.reference().iter().zip(&u).map(|(p, d)| p + d).collect();
+        let (k, expect) = (model.linear_stiffness_at(&x).unwrap(), deformed.linear_stiffness());
         let scale = expect.assembled.val.iter().fold(0.0f64, |m, b| m.max(b.amax()));
         assert_eq!(k.assembled.col, expect.assembled.col);
         for (a, b) in k.assembled.val.iter().zip(&expect.assembled.val) {
@@ -208,6 +209,11 @@ mod tests {
         }
         for (a, b) in kn.c_val.iter().zip(&en.c_val) {
             assert!((a - b).amax() <= 1e-9 * b.amax().max(1.0));
+        }
+        // The preconditioner in use is the one of that stiffness.
+        for a in 0..model.node_count() {
+            let d = expect.diagonal(a);
+            assert!((pre.current().diagonal(a) - d).amax() <= 1e-9 * d.amax());
         }
         // Nearly incompressible (ν = 0.499, κ/μ 500): never.
         let mesh = bs_mesh::structured::box_mesh(3, 1.0, true);

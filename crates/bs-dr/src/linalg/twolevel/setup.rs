@@ -17,7 +17,8 @@ use crate::linalg::sparse::max_abs;
 /// The two-level preconditioner of `K₀` (see the module documentation).
 #[derive(Debug)]
 pub struct TwoLevel {
-    pub(super) k: NodalMatrix,
+    /// The 3×3 diagonal blocks of `K₀` (both parts); `K₀` itself is not kept.
+    pub(super) diag: Vec<Matrix3<f64>>,
     /// `K₀` in single precision: the operator of the smoother.
     pub(super) op32: Operator32,
     pub(super) params: TwoLevelParams,
@@ -43,10 +44,9 @@ impl TwoLevel {
         params: TwoLevelParams,
     ) -> Result<Self, TwoLevelError> {
         let n = x.len();
-        let inv_diag: Vec<Matrix3<f64>> = (0..n)
-            .into_par_iter()
-            .map(|a| projected_inverse(&k.diagonal(a), &fixed.matrix[a]))
-            .collect();
+        let diag: Vec<Matrix3<f64>> = (0..n).into_par_iter().map(|a| k.diagonal(a)).collect();
+        let inv_diag: Vec<Matrix3<f64>> =
+            (0..n).into_par_iter().map(|a| projected_inverse(&diag[a], &fixed.matrix[a])).collect();
         let mut scratch = k.scratch();
         let lambda_max = 1.1 * power_max(&k, &inv_diag, fixed, &mut scratch, 20);
         let h = params.aggregate_size * mean_edge;
@@ -63,12 +63,13 @@ impl TwoLevel {
         let coarse = galerkin(&pt, &kp, nc)?;
         let fixed = Constraints { projector: fixed.clone(), inv_diag };
         let op32 = Operator32::new(&k);
-        Ok(TwoLevel { k, op32, params, fixed, lambda_max, p, pt, coarse })
+        Ok(TwoLevel { diag, op32, params, fixed, lambda_max, p, pt, coarse })
     }
 
-    /// The linearised stiffness the preconditioner approximates.
-    pub fn stiffness(&self) -> &NodalMatrix {
-        &self.k
+    /// The 3×3 diagonal block of node `a` of the linearised stiffness the preconditioner
+    /// approximates.
+    pub fn diagonal(&self, a: usize) -> Matrix3<f64> {
+        self.diag[a]
     }
 
     /// Number of coarse unknowns.
@@ -112,11 +113,8 @@ impl TwoLevel {
         }
         c.projector.matrix[a] = matrix;
         c.projector.constrained[a] = fixed.constrained[a] || m > 0;
-        c.inv_diag[a] = if m == 0 {
-            self.fixed.inv_diag[a]
-        } else {
-            projected_inverse(&self.k.diagonal(a), &matrix)
-        };
+        c.inv_diag[a] =
+            if m == 0 { self.fixed.inv_diag[a] } else { projected_inverse(&self.diag[a], &matrix) };
         m
     }
 

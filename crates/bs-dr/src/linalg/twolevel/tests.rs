@@ -57,7 +57,7 @@ fn iterations(m: &Model, two_level: bool) -> (usize, f64) {
     let mut b: Vec<Vector3<f64>> =
         m.reference().iter().map(|x| Vector3::new(0.1 * x.z, 0.0, -0.05 * x.x)).collect();
     fixed.apply(&mut b);
-    let k = tl.stiffness();
+    let k = m.linear_stiffness();
     let mut ks = k.scratch();
     let mut ts = tl.scratch();
     let mut op = |x: &[Vector3<f64>], y: &mut [Vector3<f64>]| {
