@@ -147,7 +147,8 @@ impl TwoLevel {
             let (nodes, vals) = self.pt.row(i);
             let mut acc = 0.0;
             for (&a, v) in nodes.iter().zip(vals) {
-                acc += v.dot(&r[a as usize]);
+                let ra = &r[a as usize];
+                acc += f64::from(v[0]) * ra.x + f64::from(v[1]) * ra.y + f64::from(v[2]) * ra.z;
             }
             *ci = acc;
         });
@@ -157,7 +158,8 @@ impl TwoLevel {
             let (cols, vals) = self.p.row(a);
             let mut acc = Vector3::zeros();
             for (&j, v) in cols.iter().zip(vals) {
-                acc += v * c[j as usize];
+                let cj = c[j as usize];
+                acc += Vector3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2])) * cj;
             }
             *ea = acc;
         });

@@ -51,6 +51,40 @@ impl NodeRows {
     }
 }
 
+/// [`NodeRows`] with single-precision entries: the prolongator and its transpose as the
+/// cycle reads them (half the bytes; products accumulate in double precision).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct NodeRows32 {
+    ptr: Vec<u32>,
+    col: Vec<u32>,
+    val: Vec<[f32; 3]>,
+}
+
+impl From<&NodeRows> for NodeRows32 {
+    fn from(a: &NodeRows) -> Self {
+        let val = a.val.par_iter().map(|v| [v.x as f32, v.y as f32, v.z as f32]).collect();
+        NodeRows32 { ptr: a.ptr.clone(), col: a.col.clone(), val }
+    }
+}
+
+impl NodeRows32 {
+    /// Row `a`: columns and entries.
+    pub(crate) fn row(&self, a: usize) -> (&[u32], &[[f32; 3]]) {
+        let (lo, hi) = (self.ptr[a] as usize, self.ptr[a + 1] as usize);
+        (&self.col[lo..hi], &self.val[lo..hi])
+    }
+
+    /// Number of rows.
+    pub(crate) fn rows(&self) -> usize {
+        self.ptr.len() - 1
+    }
+
+    /// Number of entries.
+    pub(crate) fn len(&self) -> usize {
+        self.val.len()
+    }
+}
+
 /// Sparse accumulator over `n` columns (dense values, touched list).
 pub(crate) struct Accumulator<T> {
     pub(super) val: Vec<T>,

@@ -10,7 +10,7 @@ use super::coarse::{Coarse, galerkin, tentative_prolongator};
 use super::operator::Operator32;
 use super::params::{TwoLevelError, TwoLevelParams};
 use super::projector::{Constraints, Projector, projected_inverse};
-use super::rows::{NodeRows, product, tentative_columns, transpose};
+use super::rows::{NodeRows, NodeRows32, product, tentative_columns, transpose};
 use crate::linalg::nodal::{NodalMatrix, NodalScratch};
 use crate::linalg::sparse::max_abs;
 
@@ -26,9 +26,9 @@ pub struct TwoLevel {
     pub(super) fixed: Constraints,
     /// `λ_max(D⁻¹ K₀)` with a 10% margin.
     pub(super) lambda_max: f64,
-    pub(super) p: NodeRows,
+    pub(super) p: NodeRows32,
     /// `Pᵀ`: per coarse column, `(node, 3-vector)`.
-    pub(super) pt: NodeRows,
+    pub(super) pt: NodeRows32,
     pub(super) coarse: Coarse,
 }
 
@@ -63,6 +63,7 @@ impl TwoLevel {
         let coarse = galerkin(&pt, &kp, nc)?;
         let fixed = Constraints { projector: fixed.clone(), inv_diag };
         let op32 = Operator32::new(&k);
+        let (p, pt) = (NodeRows32::from(&p), NodeRows32::from(&pt));
         Ok(TwoLevel { diag, op32, params, fixed, lambda_max, p, pt, coarse })
     }
 
@@ -121,7 +122,7 @@ impl TwoLevel {
     /// Sizes for benchmarks and profiles: (coarse unknowns, nonzeros of the coarse factor,
     /// nonzeros of the prolongator as 3-vectors).
     pub fn sizes(&self) -> (usize, usize, usize) {
-        (self.pt.rows(), self.coarse.len(), self.p.val.len())
+        (self.pt.rows(), self.coarse.len(), self.p.len())
     }
 }
 
