@@ -8,8 +8,7 @@
 //! * **Smoothing**: `P = (I − ω D⁻¹ K₀) P_tent` with `D` the 3×3 nodal diagonal blocks and
 //!   `ω = 4 / (3 λ_max(D⁻¹K₀))`; the coarse operator is the Galerkin product `Pᵀ K₀ P`.
 //! * **Cycle**: Chebyshev smoothing of degree `k` on `D⁻¹K₀` over `[λ_max/10, λ_max]`, coarse
-//!   correction, Chebyshev again: a symmetric positive-definite preconditioner (up to the
-//!   single-precision rounding of the coarse solve; GMRES, not CG, uses it).
+//!   correction, Chebyshev again: a symmetric positive-definite preconditioner.
 //! * **Constraints**: every vector lives in the subspace left by the constraints of each node
 //!   (prescribed components, and the normal directions of nodes in contact), applied as the
 //!   nodal orthogonal projector `Π`. The cycle runs on `Π K₀ Π` with the block-diagonal

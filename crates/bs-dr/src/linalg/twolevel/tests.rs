@@ -111,9 +111,7 @@ fn the_cycle_is_symmetric_and_positive() {
     tl.apply(&con, &x, &mut bx, &mut s);
     tl.apply(&con, &y, &mut by, &mut s);
     let (xby, ybx) = (dot(&x, &by), dot(&y, &bx));
-    // Symmetric up to the rounding of the coarse solve, which runs in single precision
-    // (unit roundoff 6e-8; measured 4.6e-8 here).
-    assert!((xby - ybx).abs() <= 1e-6 * xby.abs().max(ybx.abs()), "{xby} vs {ybx}");
+    assert!((xby - ybx).abs() <= 1e-9 * xby.abs().max(ybx.abs()), "{xby} vs {ybx}");
     assert!(dot(&x, &bx) > 0.0 && dot(&y, &by) > 0.0);
     // The result stays in the admissible subspace.
     for a in 0..n {
