@@ -4,65 +4,22 @@
 use bs_mesh::{Point3, Vector3};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
-use faer::sparse::linalg::cholesky::LltRef;
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky,
 };
 use faer::sparse::{SparseColMat, Triplet};
-use faer::{Conj, MatMut, Par, Side};
+use faer::{Par, Side};
 use rayon::prelude::*;
 
 use super::params::TwoLevelError;
 use super::projector::Projector;
 use super::rows::{Accumulator, NodeRows};
 
-/// The coarse factor `L` of `A_c = L Lᵀ`, computed in double precision (where a rigid-body
-/// mode shows as a failed pivot) and kept in single precision: the triangular solves read
-/// half the bytes. `L` rounded to single precision is the exact factor of a matrix within
-/// relative 2⁻²³ of `A_c` entrywise, a change of the preconditioner far below what GMRES
-/// notices. Measured: the same GMRES iterations on the MNI152 demo (99, answers within
-/// 3e-11 mm) and on its 852k-tet mesh (208), where the coarse solves took 1.73 s instead of
-/// 2.47 s.
+/// The coarse factor.
 #[derive(Debug)]
 pub(crate) struct Coarse {
-    symbolic: SymbolicCholesky<usize>,
-    values: Vec<f32>,
-}
-
-/// Scratch of [`Coarse::solve_in_place`].
-pub(crate) struct CoarseScratch {
-    c: Vec<f32>,
-    mem: MemBuffer,
-}
-
-impl Coarse {
-    /// Number of stored entries of the factor.
-    pub(crate) fn len(&self) -> usize {
-        self.values.len()
-    }
-
-    /// Scratch buffers for [`solve_in_place`](Self::solve_in_place).
-    pub(crate) fn scratch(&self) -> CoarseScratch {
-        let n = self.symbolic.nrows();
-        CoarseScratch {
-            c: vec![0.0; n],
-            mem: MemBuffer::new(self.symbolic.solve_in_place_scratch::<f32>(1, Par::Seq)),
-        }
-    }
-
-    /// `c = A_c⁻¹ c`.
-    pub(crate) fn solve_in_place(&self, c: &mut [f64], s: &mut CoarseScratch) {
-        let n = c.len();
-        s.c.iter_mut().zip(c.iter()).for_each(|(a, b)| *a = *b as f32);
-        let llt = LltRef::new(&self.symbolic, &self.values);
-        llt.solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(&mut s.c, n, 1),
-            Par::Seq,
-            MemStack::new(&mut s.mem),
-        );
-        c.iter_mut().zip(&s.c).for_each(|(a, b)| *a = f64::from(*b));
-    }
+    pub(super) symbolic: SymbolicCholesky<usize>,
+    pub(super) values: Vec<f64>,
 }
 
 /// Geometric aggregates of spacing `h` over the nodes at `x` and their rigid-body modes (the tentative
@@ -194,6 +151,5 @@ pub(crate) fn galerkin(pt: &NodeRows, kp: &NodeRows, nc: usize) -> Result<Coarse
         )
         .map_err(|_| TwoLevelError::Singular)?;
     let _ = max_diag;
-    let values = values.par_iter().map(|&v| v as f32).collect();
     Ok(Coarse { symbolic, values })
 }

@@ -2,9 +2,11 @@
 //! pre-smoothing, coarse correction, Chebyshev post-smoothing), on caller-owned scratch.
 
 use bs_mesh::Vector3;
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::cholesky::LltRef;
+use faer::{Conj, MatMut, Par};
 use rayon::prelude::*;
 
-use super::coarse::CoarseScratch;
 use super::operator::OperatorScratch;
 use super::projector::{Constraints, Projector};
 use super::setup::TwoLevel;
@@ -21,7 +23,7 @@ pub struct TwoLevelScratch {
     e: Vec<Vector3<f64>>,
     k: OperatorScratch,
     coarse: Vec<f64>,
-    solve: CoarseScratch,
+    mem: MemBuffer,
 }
 
 impl std::fmt::Debug for TwoLevelScratch {
@@ -45,7 +47,7 @@ impl TwoLevel {
             e: vec![Vector3::zeros(); n],
             k: self.op32.scratch(),
             coarse: vec![0.0; nc],
-            solve: self.coarse.scratch(),
+            mem: MemBuffer::new(self.coarse.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq)),
         }
     }
 
@@ -120,14 +122,14 @@ impl TwoLevel {
         x: &mut [Vector3<f64>],
         s: &mut TwoLevelScratch,
     ) {
-        let TwoLevelScratch { r, d, t, e, k, coarse, solve } = s;
+        let TwoLevelScratch { r, d, t, e, k, coarse, mem } = s;
         let pi = &con.projector;
         x.par_iter_mut().with_min_len(ROWS).for_each(|v| *v = Vector3::zeros());
         r.copy_from_slice(b);
         self.chebyshev(con, r, x, d, t, k);
         // Residual after pre-smoothing, coarse correction, and the residual after it.
         self.op_with(pi, x, k, r, |a, ra, y| *ra = b[a] - y);
-        self.coarse_correct(pi, r, e, coarse, solve);
+        self.coarse_correct(pi, r, e, coarse, mem);
         x.par_iter_mut().zip(e.par_iter()).with_min_len(ROWS).for_each(|(xa, ea)| *xa += ea);
         self.op_with(pi, e, k, r, |_, ra, y| *ra -= y);
         // Post-smoothing accumulates into x directly.
@@ -141,7 +143,7 @@ impl TwoLevel {
         r: &[Vector3<f64>],
         e: &mut [Vector3<f64>],
         c: &mut [f64],
-        solve: &mut CoarseScratch,
+        mem: &mut MemBuffer,
     ) {
         c.par_iter_mut().enumerate().with_min_len(64).for_each(|(i, ci)| {
             let (nodes, vals) = self.pt.row(i);
@@ -152,7 +154,14 @@ impl TwoLevel {
             }
             *ci = acc;
         });
-        self.coarse.solve_in_place(c, solve);
+        let llt = LltRef::new(&self.coarse.symbolic, &self.coarse.values);
+        let nc = c.len();
+        llt.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(c, nc, 1),
+            Par::Seq,
+            MemStack::new(mem),
+        );
         let c: &[f64] = c;
         e.par_iter_mut().enumerate().with_min_len(256).for_each(|(a, ea)| {
             let (cols, vals) = self.p.row(a);

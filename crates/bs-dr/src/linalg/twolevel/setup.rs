@@ -122,7 +122,7 @@ impl TwoLevel {
     /// Sizes for benchmarks and profiles: (coarse unknowns, nonzeros of the coarse factor,
     /// nonzeros of the prolongator as 3-vectors).
     pub fn sizes(&self) -> (usize, usize, usize) {
-        (self.pt.rows(), self.coarse.len(), self.p.len())
+        (self.pt.rows(), self.coarse.values.len(), self.p.len())
     }
 }
 
