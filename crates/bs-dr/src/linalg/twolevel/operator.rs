@@ -6,7 +6,7 @@
 //! So `Cᵀ`'s entry `(r, c)` (term `c`'s 3-vector at node `r`) fits in the slot of block
 //! `E_rc`, and each slot holds the three rows of the 3×4 matrix `[E_rc | (c_c)_r]` — the 12
 //! floats a padded 3×3 block took. With `x̂_c = (x_c, s_c)`, `s_c = w_c c_c·x` (pass one, which
-//! also reads `c_r`'s entries `(c_r)_c` from the same slots), row `r` of `K₀ x` is
+//! reads `c_r`'s entries `(c_r)_c` from a second array on the same slots), row `r` of `K₀ x` is
 //! `Σ_c [E_rc | (c_c)_r] x̂_c` (pass two): one aligned 4-lane load of `x̂_c` and three fused
 //! multiply-adds per slot. Terms beyond the nodes (the extra groups of nodes shared by two
 //! solids) stay a separate [`RankOneSum32`].
