@@ -7,13 +7,18 @@ use rayon::prelude::*;
 use crate::linalg::sparse::{BlockCsr, RankOneSum, split_rows};
 
 /// A sparse matrix with one row per node (three scalar rows) and scalar columns: row `a`
-/// holds `(column, 3-vector)` entries.
+/// holds `(column, 3-vector)` entries, in double precision (`V = Vector3<f64>`, the setup's
+/// form) or single ([`NodeRows32`], the cycle's).
 #[derive(Debug, Clone, Default)]
-pub(crate) struct NodeRows {
+pub(crate) struct NodeRows<V = Vector3<f64>> {
     pub(super) ptr: Vec<u32>,
     pub(super) col: Vec<u32>,
-    pub(super) val: Vec<Vector3<f64>>,
+    pub(super) val: Vec<V>,
 }
+
+/// [`NodeRows`] with single-precision entries: the prolongator and its transpose as the
+/// cycle reads them (half the bytes; products accumulate in double precision).
+pub(crate) type NodeRows32 = NodeRows<[f32; 3]>;
 
 impl NodeRows {
     /// The rows in compressed form (copied in parallel, row by row).
@@ -41,35 +46,16 @@ impl NodeRows {
         NodeRows { ptr, col, val }
     }
 
-    pub(crate) fn row(&self, a: usize) -> (&[u32], &[Vector3<f64>]) {
-        let (lo, hi) = (self.ptr[a] as usize, self.ptr[a + 1] as usize);
-        (&self.col[lo..hi], &self.val[lo..hi])
-    }
-
-    pub(crate) fn rows(&self) -> usize {
-        self.ptr.len() - 1
+    /// The same rows with single-precision entries.
+    pub(crate) fn to_f32(&self) -> NodeRows32 {
+        let val = self.val.par_iter().map(|v| [v.x as f32, v.y as f32, v.z as f32]).collect();
+        NodeRows { ptr: self.ptr.clone(), col: self.col.clone(), val }
     }
 }
 
-/// [`NodeRows`] with single-precision entries: the prolongator and its transpose as the
-/// cycle reads them (half the bytes; products accumulate in double precision).
-#[derive(Debug, Clone, Default)]
-pub(crate) struct NodeRows32 {
-    ptr: Vec<u32>,
-    col: Vec<u32>,
-    val: Vec<[f32; 3]>,
-}
-
-impl From<&NodeRows> for NodeRows32 {
-    fn from(a: &NodeRows) -> Self {
-        let val = a.val.par_iter().map(|v| [v.x as f32, v.y as f32, v.z as f32]).collect();
-        NodeRows32 { ptr: a.ptr.clone(), col: a.col.clone(), val }
-    }
-}
-
-impl NodeRows32 {
+impl<V> NodeRows<V> {
     /// Row `a`: columns and entries.
-    pub(crate) fn row(&self, a: usize) -> (&[u32], &[[f32; 3]]) {
+    pub(crate) fn row(&self, a: usize) -> (&[u32], &[V]) {
         let (lo, hi) = (self.ptr[a] as usize, self.ptr[a + 1] as usize);
         (&self.col[lo..hi], &self.val[lo..hi])
     }

@@ -63,7 +63,7 @@ impl TwoLevel {
         let coarse = galerkin(&pt, &kp, nc)?;
         let fixed = Constraints { projector: fixed.clone(), inv_diag };
         let op32 = Operator32::new(&k);
-        let (p, pt) = (NodeRows32::from(&p), NodeRows32::from(&pt));
+        let (p, pt) = (p.to_f32(), pt.to_f32());
         Ok(TwoLevel { diag, op32, params, fixed, lambda_max, p, pt, coarse })
     }
 
