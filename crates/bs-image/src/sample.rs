@@ -8,6 +8,9 @@ use crate::Volume;
 /// centres (no extrapolation). A point within 1e-9 voxel of the last centre counts inside.
 pub fn trilinear_at(volume: &Volume<f32>, ijk: [f64; 3]) -> Option<f32> {
     let dims = volume.grid.dims();
+    if dims.iter().all(|&n| n >= 2) {
+        return trilinear_3d(volume, dims, ijk);
+    }
     let mut base = [0usize; 3];
     let mut frac = [0.0f64; 3];
     for a in 0..3 {
@@ -45,6 +48,36 @@ pub fn trilinear_at(volume: &Volume<f32>, ijk: [f64; 3]) -> Option<f32> {
         }
     }
     Some(acc as f32)
+}
+
+/// [`trilinear_at`] on a grid with at least two points along every axis (the warp's
+/// inner loop): three nested linear interpolations.
+#[inline]
+fn trilinear_3d(volume: &Volume<f32>, dims: [usize; 3], ijk: [f64; 3]) -> Option<f32> {
+    let mut base = [0usize; 3];
+    let mut f = [0.0f64; 3];
+    for a in 0..3 {
+        let last = (dims[a] - 1) as f64;
+        let x = ijk[a];
+        if !(x >= -1e-9 && x <= last + 1e-9) {
+            return None;
+        }
+        let x = x.clamp(0.0, last);
+        let b = (x as usize).min(dims[a] - 2);
+        base[a] = b;
+        f[a] = x - b as f64;
+    }
+    let (sj, sk) = (dims[0], dims[0] * dims[1]);
+    let i0 = base[0] + sj * base[1] + sk * base[2];
+    let d = &volume.data[i0..i0 + sk + sj + 2];
+    let lerp = |a: f32, b: f32, t: f64| f64::from(a) * (1.0 - t) + f64::from(b) * t;
+    let c00 = lerp(d[0], d[1], f[0]);
+    let c10 = lerp(d[sj], d[sj + 1], f[0]);
+    let c01 = lerp(d[sk], d[sk + 1], f[0]);
+    let c11 = lerp(d[sk + sj], d[sk + sj + 1], f[0]);
+    let c0 = c00 * (1.0 - f[1]) + c10 * f[1];
+    let c1 = c01 * (1.0 - f[1]) + c11 * f[1];
+    Some((c0 * (1.0 - f[2]) + c1 * f[2]) as f32)
 }
 
 /// Trilinear interpolation at a world point.
@@ -127,6 +160,41 @@ pub fn labels_mostly_inside(labels: &[u32], inside: &[bool]) -> Vec<u32> {
 mod tests {
     use super::*;
     use crate::Grid;
+
+    #[test]
+    fn trilinear_is_the_product_of_three_hat_functions_and_none_beyond_the_centres() {
+        // Arbitrary values on a 4 × 5 × 3 grid; the reference is the eight-corner sum of
+        // hat-function products, written out here independently.
+        let dims = [4usize, 5, 3];
+        let grid = Grid::axis_aligned(dims, [1.0; 3], [0.0; 3]).unwrap();
+        let value = |i: usize, j: usize, k: usize| ((i * 7 + j * 13 + k * 29) % 17) as f32 - 3.5;
+        let data = (0..60).map(|n| value(n % 4, (n / 4) % 5, n / 20)).collect();
+        let v = Volume { grid, data };
+        let hat = |x: f64, c: usize| (1.0 - (x - c as f64).abs()).max(0.0);
+        for p in [
+            [0.0, 0.0, 0.0],
+            [3.0, 4.0, 2.0],
+            [1.25, 3.5, 0.75],
+            [2.999, 0.001, 1.5],
+            [0.5, 2.0, 2.0],
+        ] {
+            let mut want = 0.0;
+            for k in 0..3 {
+                for j in 0..5 {
+                    for i in 0..4 {
+                        want +=
+                            f64::from(value(i, j, k)) * hat(p[0], i) * hat(p[1], j) * hat(p[2], k);
+                    }
+                }
+            }
+            let got = trilinear_at(&v, p).unwrap();
+            assert!((f64::from(got) - want).abs() < 1e-5, "{p:?}: {got} vs {want}");
+        }
+        // Within 1e-9 of the last centre: inside; beyond it: none.
+        assert!(trilinear_at(&v, [3.0 + 1e-10, 0.0, 0.0]).is_some());
+        assert_eq!(trilinear_at(&v, [3.0 + 1e-6, 0.0, 0.0]), None);
+        assert_eq!(trilinear_at(&v, [0.0, -1e-6, 0.0]), None);
+    }
 
     #[test]
     fn the_nearest_label_not_excluded_is_found_or_background() {

@@ -20,6 +20,9 @@ use rayon::prelude::*;
 
 use crate::{ElementKind, LocateError, Mesh};
 
+mod affine;
+pub use affine::TetAffine;
+
 /// A lattice point whose barycentric weights are all ≥ −`INSIDE_TOLERANCE` counts as inside
 /// the tetrahedron: points on a shared face (exactly, in exact arithmetic) read about −1e-16
 /// in both neighbours after rounding and must not fall into a crack between them.

@@ -24,8 +24,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use bs_image::{Grid, Space, Volume};
-use bs_mesh::lattice::{LatticeLocation, OUTSIDE, tetrahedra};
+use bs_mesh::lattice::{LatticeLocation, OUTSIDE, TetAffine, tetrahedra};
 use bs_mesh::{Mesh, Point3, TriSurface, Vector3};
+use nalgebra::Matrix4;
 use rayon::prelude::*;
 
 use crate::SceneError;
@@ -426,9 +427,11 @@ impl InverseMap {
     /// the deformed mesh and in the gap to the skull; every other voxel keeps the value of
     /// `keep` (the input on the same grid), as does a voxel whose X(y) falls outside `image`.
     pub fn warp(&self, image: &Volume<f32>, keep: &[f32]) -> Vec<f32> {
-        let sample = |x: &Point3<f64>| bs_image::sample::trilinear(image, x);
-        let mut out = self.resample(keep, sample);
-        self.resample_gap(&mut out, |_, x| sample(x));
+        let maps = self.location.affine_maps(&self.reference, image.grid.world_to_voxel());
+        let mut out = self
+            .location
+            .map_inside(Some(keep), &maps, |_, s| bs_image::sample::trilinear_at(image, s));
+        self.resample_gap(&mut out, |_, x| bs_image::sample::trilinear(image, x));
         out
     }
 
@@ -438,7 +441,10 @@ impl InverseMap {
     /// and a gap voxel whose X(y) falls on one takes the nearest label at X(y) that is not
     /// (within [`LABEL_SEARCH_VOXELS`] voxels), else 0 (background).
     pub fn warp_labels(&self, labels: &Volume<u32>, keep: &[u32]) -> Vec<u32> {
-        let mut out = self.resample(keep, |x| bs_image::sample::nearest(labels, x));
+        let maps = self.location.affine_maps(&self.reference, labels.grid.world_to_voxel());
+        let mut out = self
+            .location
+            .map_inside(Some(keep), &maps, |_, s| bs_image::sample::nearest_at(labels, s));
         if self.outside.is_some() {
             let brain = self.brain_labels(labels);
             self.resample_gap(&mut out, |_, x| {
@@ -468,23 +474,6 @@ impl InverseMap {
         }
     }
 
-    /// `keep` with every voxel inside the deformed mesh replaced by `sample` at its
-    /// reference position X(y) (where `sample` has a value).
-    fn resample<T: Copy + Send + Sync>(
-        &self,
-        keep: &[T],
-        sample: impl Fn(&nalgebra::Point3<f64>) -> Option<T> + Sync + Send,
-    ) -> Vec<T> {
-        let mut out = keep.to_vec();
-        self.location.for_each_inside(&mut out, |_, t, w, o| {
-            let x = self.location.interpolate(t, &w, &self.reference);
-            if let Some(v) = sample(&x) {
-                *o = v;
-            }
-        });
-        out
-    }
-
     /// `out` with every gap voxel replaced by `sample(n, y + d(y))` (where it has a value):
     /// sampled in parallel, written in order.
     fn resample_gap<T: Copy + Send>(
@@ -510,12 +499,15 @@ impl InverseMap {
     /// inverse inside the deformed mesh, the extension in the gap, zero beyond the skull;
     /// voxel order `i + nx (j + ny k)`.
     pub fn field(&self) -> Vec<[f32; 3]> {
-        let mut out = vec![[0.0f32; 3]; self.grid.len()];
-        self.location.for_each_inside(&mut out, |n, t, w, o| {
-            let x = self.location.interpolate(t, &w, &self.reference);
-            let d = x - self.voxel_centre(n);
-            *o = [d.x as f32, d.y as f32, d.z as f32];
-        });
+        // d = X(y) − y: the interpolant of X minus the grid's index-to-world map.
+        let to_world = self.grid.voxel_to_world();
+        let maps: Vec<TetAffine> = self
+            .location
+            .affine_maps(&self.reference, &Matrix4::identity())
+            .iter()
+            .map(|a| a.minus(to_world))
+            .collect();
+        let mut out = self.location.map_inside(None, &maps, |_, d| Some(d.map(|c| c as f32)));
         if let Some(o) = &self.outside {
             for (&n, d) in o.voxels.iter().zip(&o.values) {
                 out[n as usize] = d.map(|c| c as f32);
