@@ -156,7 +156,7 @@ mod tests {
         let keep = vec![-7.0f64; 125];
         let out =
             loc.map_inside(Some(&keep), &maps, |_, y| Some(y[0] + 10.0 * y[1] + 100.0 * y[2]));
-        for n in 0..125 {
+        for (n, got) in out.iter().enumerate() {
             let ijk = [n % 5, (n / 5) % 5, n / 25];
             let inside = ijk.iter().all(|&x| (1..=3).contains(&x));
             let want = if inside {
@@ -164,7 +164,7 @@ mod tests {
             } else {
                 -7.0
             };
-            assert!((out[n] - want).abs() < 1e-12, "point {ijk:?}: {} vs {want}", out[n]);
+            assert!((got - want).abs() < 1e-12, "point {ijk:?}: {got} vs {want}");
         }
     }
 }
