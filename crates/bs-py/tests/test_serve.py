@@ -162,6 +162,15 @@ def test_packing_equals_pyigtl_and_the_checksum_its_crcmod():
     assert igtl.crc64(b"123456789") == 0x6C40DF5F0B497347  # CRC-64/ECMA-182's check value
     assert igtl.crc64(data) == CRC64(data.tobytes())
     assert igtl.crc64(data[50_000:], igtl.crc64(data[:50_000].tobytes())) == CRC64(data.tobytes())
+    # Above 8 MB the native sum runs in parallel pieces joined algebraically: it equals the
+    # same bytes summed one core's piece (1 MB) after another, and crcmod's on a prefix.
+    big = np.random.default_rng(5).integers(0, 256, size=9_000_011, dtype=np.uint8)
+    chained = 0
+    for k in range(0, big.size, 1 << 20):
+        chained = igtl.crc64(big[k:k + (1 << 20)], chained)
+    assert igtl.crc64(big) == chained
+    assert igtl.crc64(big[100:], igtl.crc64(big[:100])) == chained
+    assert igtl.crc64(big[: 8_400_000]) == CRC64(big[: 8_400_000].tobytes())
     m = pyigtl.StringMessage("brain shift", device_name="Report", timestamp=1234.5)
     assert igtl.pack(m, timestamp=1234.5) == m.pack()
     assert igtl.string_message("brain shift", "Report", timestamp=1234.5) == m.pack()
