@@ -268,31 +268,6 @@ impl LatticeLocation {
                 + values[n[3]].coords * weights[3],
         )
     }
-
-    /// Calls `f(n, t, weights, &mut out[n])` for every lattice point `n` inside the mesh, in
-    /// parallel over z slices; `out` has one entry per lattice point and points outside are
-    /// left untouched.
-    pub fn for_each_inside<T, F>(&self, out: &mut [T], f: F)
-    where
-        T: Send,
-        F: Fn(usize, usize, [f64; 4], &mut T) + Sync + Send,
-    {
-        let [nx, ny, _] = self.dims;
-        let plane = nx * ny;
-        assert_eq!(out.len(), self.owner.len(), "one output per lattice point");
-        out.par_chunks_mut(plane).zip(self.owner.par_chunks(plane)).enumerate().for_each(
-            |(k, (out, owner))| {
-                for (m, (o, &t)) in out.iter_mut().zip(owner).enumerate() {
-                    if t == OUTSIDE {
-                        continue;
-                    }
-                    let (i, j) = (m % nx, m / nx);
-                    let w = self.weights(t as usize, [i, j, k]);
-                    f(k * plane + m, t as usize, w, o);
-                }
-            },
-        );
-    }
 }
 
 #[cfg(test)]

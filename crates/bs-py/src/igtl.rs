@@ -2,7 +2,7 @@
 //! (0x42F0E1EBA9EA3693, not reflected, initial value 0, no final xor), as the C++ library
 //! and pyigtl compute it. Native because the server checks every message it receives and
 //! sums every image it sends (tens of MB); slicing by eight (eight table lookups per 8
-//! bytes), and above [`PARALLEL_BYTES`] in pieces summed in parallel and joined: the CRC is
+//! bytes), and from twice [`PARALLEL_BYTES`] in pieces summed in parallel and joined: the CRC is
 //! linear, `crc(A B, c) = crc(B, 0) ⊕ crc(A, c) · x^(8|B|) mod P`.
 
 use pyo3::prelude::*;
@@ -10,8 +10,8 @@ use rayon::prelude::*;
 
 const POLY: u64 = 0x42F0_E1EB_A9EA_3693;
 
-/// Inputs at least this long are summed in pieces of this size, in parallel (an 8.7 M-voxel
-/// float image is 35 MB: 0.017 s on one core).
+/// Inputs of at least twice this are summed in pieces of this size, in parallel (an
+/// 8.7 M-voxel float image is 35 MB: 0.017 s on one core, 0.009 s on two).
 const PARALLEL_BYTES: usize = 4 << 20;
 
 /// `TABLES[k][b]`: the CRC of byte `b` followed by `k` zero bytes.
@@ -33,8 +33,8 @@ static TABLES: std::sync::LazyLock<[[u64; 256]; 8]> = std::sync::LazyLock::new(|
     t
 });
 
-/// CRC-64/ECMA-182 of `data` on one core, continuing from `crc` (the checksum of what came before; 0
-/// to start).
+/// CRC-64/ECMA-182 of `data` on one core, continuing from `crc` (the checksum of what came
+/// before; 0 to start).
 fn crc64_serial(data: &[u8], crc: u64) -> u64 {
     let t = &*TABLES;
     let mut crc = crc;

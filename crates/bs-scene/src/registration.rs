@@ -430,7 +430,7 @@ impl InverseMap {
         let maps = self.location.affine_maps(&self.reference, image.grid.world_to_voxel());
         let mut out = self
             .location
-            .map_inside(Some(keep), &maps, |_, s| bs_image::sample::trilinear_at(image, s));
+            .map_inside(Some(keep), &maps, |s| bs_image::sample::trilinear_at(image, s));
         self.resample_gap(&mut out, |_, x| bs_image::sample::trilinear(image, x));
         out
     }
@@ -444,7 +444,7 @@ impl InverseMap {
         let maps = self.location.affine_maps(&self.reference, labels.grid.world_to_voxel());
         let mut out = self
             .location
-            .map_inside(Some(keep), &maps, |_, s| bs_image::sample::nearest_at(labels, s));
+            .map_inside(Some(keep), &maps, |s| bs_image::sample::nearest_at(labels, s));
         if self.outside.is_some() {
             let brain = self.brain_labels(labels);
             self.resample_gap(&mut out, |_, x| {
@@ -507,7 +507,7 @@ impl InverseMap {
             .iter()
             .map(|a| a.minus(to_world))
             .collect();
-        let mut out = self.location.map_inside(None, &maps, |_, d| Some(d.map(|c| c as f32)));
+        let mut out = self.location.map_inside(None, &maps, |d| Some(d.map(|c| c as f32)));
         if let Some(o) = &self.outside {
             for (&n, d) in o.voxels.iter().zip(&o.values) {
                 out[n as usize] = d.map(|c| c as f32);

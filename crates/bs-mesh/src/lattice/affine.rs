@@ -58,13 +58,13 @@ impl LatticeLocation {
             .collect()
     }
 
-    /// `keep` (all `T::default()` when `None`) with every lattice point `n` inside the mesh
-    /// replaced by `f(n, y)`, `y` the map of its tetrahedron in `maps` at its indices (where
-    /// `f` has a value): in parallel over z slices, each copied and filled in one pass.
+    /// `keep` (all `T::default()` when `None`) with every lattice point inside the mesh
+    /// replaced by `f(y)`, `y` the map of its tetrahedron in `maps` at its indices (where `f`
+    /// has a value): in parallel over z slices, each copied and filled in one pass.
     pub fn map_inside<T, F>(&self, keep: Option<&[T]>, maps: &[TetAffine], f: F) -> Vec<T>
     where
         T: Copy + Send + Sync + Default,
-        F: Fn(usize, [f64; 3]) -> Option<T> + Sync,
+        F: Fn([f64; 3]) -> Option<T> + Sync,
     {
         let [nx, ny, _] = self.dims;
         let plane = nx * ny;
@@ -81,7 +81,7 @@ impl LatticeLocation {
                         continue;
                     }
                     let ijk = [(m % nx) as f64, (m / nx) as f64, k as f64];
-                    if let Some(v) = f(k * plane + m, maps[t as usize].apply(ijk)) {
+                    if let Some(v) = f(maps[t as usize].apply(ijk)) {
                         *o = v;
                     }
                 }
@@ -154,8 +154,7 @@ mod tests {
         // The identity field in world coordinates: y = ijk − 1.
         let maps = loc.affine_maps(&mesh.nodes, &Matrix4::identity());
         let keep = vec![-7.0f64; 125];
-        let out =
-            loc.map_inside(Some(&keep), &maps, |_, y| Some(y[0] + 10.0 * y[1] + 100.0 * y[2]));
+        let out = loc.map_inside(Some(&keep), &maps, |y| Some(y[0] + 10.0 * y[1] + 100.0 * y[2]));
         for (n, got) in out.iter().enumerate() {
             let ijk = [n % 5, (n / 5) % 5, n / 25];
             let inside = ijk.iter().all(|&x| (1..=3).contains(&x));
