@@ -225,18 +225,20 @@ impl ActiveSet {
     /// at the projection of their predicted position (moved onto the surface if they are
     /// off it); free nodes predicted outside are held at their projection. `position(a,
     /// Some(p))` moves node `a` to `p` and returns its position; `position(a, None)` returns
-    /// its position. Nothing is counted as a change.
+    /// its position. Nothing is counted as a change; returns the nodes newly held.
     pub(crate) fn keep(
         &mut self,
         contact: &mut dyn Contact,
         nodes: &[usize],
         mut position: impl FnMut(usize, Option<Point3<f64>>) -> Point3<f64>,
-    ) {
+    ) -> usize {
+        let mut added = 0;
         for (k, &a) in nodes.iter().enumerate() {
             let x = position(a, None);
             let Some(proj) = contact.project(k, &x) else { continue };
             let was_held = !matches!(self.active[k], Active::Free);
             if proj.outside || was_held {
+                added += usize::from(!was_held);
                 position(a, Some(proj.point));
                 self.active[k] = Active::Held { target: proj.point, feature: proj.feature };
             } else {
@@ -245,6 +247,7 @@ impl ActiveSet {
         }
         self.previous.copy_from_slice(&self.active);
         self.before_previous.copy_from_slice(&self.active);
+        added
     }
 
     /// Ends an iteration: the current states become the previous ones.

@@ -149,8 +149,16 @@ pub(crate) fn load_step(
 /// target shrinks with it), the prescribed components at their values for the (new)
 /// target, predicted contact nodes outside moved onto the surface and the last level's
 /// contact nodes kept held. Returns the load fraction it reached, or `None` (the iterate
-/// unchanged) when the predicted state inverts an element: the level then starts with a
-/// load step.
+/// unchanged) when the predicted state inverts an element or would hold more new contact
+/// nodes than were held: the level then starts with a load step.
+///
+/// The second refusal: the secant extrapolates one branch of the response, and where the
+/// contact set more than doubles the prediction has crossed onto another. Holding every
+/// node it pushes past the skull over-constrains the first iteration, and the release of
+/// the surplus takes one Newton iteration per batch: at the MNI152 demo's contact onset
+/// (the 4 mm update of `cargo xtask bench update`) 239 nodes held for 31 at equilibrium,
+/// 9 Newton / 48 GMRES iterations; started with a load step instead, 6 / 38 (the coarse
+/// ellipsoid's 6 mm update: 94 held for 47, 8 iterations, against 48 and 6).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn predict(
     pb: &Problem<'_>,
@@ -177,14 +185,19 @@ pub(crate) fn predict(
     let reference = pb.model.reference();
     let t = Instant::now();
     let saved = it.active.clone();
+    let held = saved.held();
     let trial = &mut it.trial_u;
-    it.active.keep(contact, &pb.nodes, |a, p| {
+    let added = it.active.keep(contact, &pb.nodes, |a, p| {
         if let Some(p) = p {
             trial[a] = p - reference[a];
         }
         reference[a] + trial[a]
     });
     work.time.contact += t.elapsed();
+    if added > held {
+        it.active = saved;
+        return Ok(None);
+    }
     if forces(pb.model, &it.trial_u, &mut it.ws, &mut it.trial_f, work).is_err() {
         it.active = saved;
         return Ok(None);

@@ -7,6 +7,9 @@
 //! later levels do. Across a change of the contact set the secant extrapolates the wrong
 //! branch: measured on the MNI152 updates at 4–8 mm it took 9–10 Newton iterations where
 //! the linearised response takes 5–7, and settled one update 0.23 mm from the cold answer.
+//! The count cannot see the update that *starts* contact (the two states before it are
+//! both free): there bs-dr refuses a prediction that would more than double the contact
+//! set and starts with a load step (`nk/loading.rs`, `predict`).
 
 use bs_mesh::Vector3;
 
