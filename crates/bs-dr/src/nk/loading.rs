@@ -150,7 +150,8 @@ pub(crate) fn load_step(
 /// target, predicted contact nodes outside moved onto the surface and the last level's
 /// contact nodes kept held. Returns the load fraction it reached, or `None` (the iterate
 /// unchanged) when the predicted state inverts an element or would hold more new contact
-/// nodes than were held: the level then starts with a load step.
+/// nodes than were held (and more than 1 % of the contact nodes): the level then starts
+/// with a load step.
 ///
 /// The second refusal: the secant extrapolates one branch of the response, and where the
 /// contact set more than doubles the prediction has crossed onto another. Holding every
@@ -194,7 +195,9 @@ pub(crate) fn predict(
         reference[a] + trial[a]
     });
     work.time.contact += t.elapsed();
-    if added > held {
+    // A few nodes touching (within 1 % of the contact nodes, the forcing's threshold of a
+    // moving active set) is the secant's own branch ending, not a jump to another.
+    if added > held.max(pb.nodes.len() / 100) {
         it.active = saved;
         return Ok(None);
     }
