@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use bs_image::{Grid, Volume};
 use numpy::PyArray2;
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 
 use crate::{affine, image_error, volume_array};
 
@@ -70,6 +71,30 @@ impl InverseMap {
     #[getter]
     fn extension_iterations(&self) -> usize {
         self.map.outside_report().map_or(0, |r| r.iterations)
+    }
+
+    /// What the map does between the deformed brain and the skull (None without a gap):
+    /// a dict with `boundary` (`"skull"`, or the width in mm of the band it decays over
+    /// without a skull), `gap_voxels`, `iterations` and `residual` of the harmonic
+    /// extension, and whether the map folds there: `folding_voxels` (gap voxels where
+    /// det(I + ∇d) ≤ 0), `min_det` and `min_det_at` (where it is smallest: RAS, mm; None
+    /// when no voxel was measured). The numbers of `brainshift warp`'s "outside the brain"
+    /// line.
+    #[getter]
+    fn outside<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(o) = self.map.outside_report() else { return Ok(None) };
+        let d = PyDict::new(py);
+        match o.boundary {
+            bs_scene::outside::Boundary::Skull => d.set_item("boundary", "skull")?,
+            bs_scene::outside::Boundary::Band(w) => d.set_item("boundary", w)?,
+        }
+        d.set_item("gap_voxels", o.gap_voxels)?;
+        d.set_item("iterations", o.iterations)?;
+        d.set_item("residual", o.residual)?;
+        d.set_item("folding_voxels", o.folding.non_positive)?;
+        d.set_item("min_det", o.folding.min)?;
+        d.set_item("min_det_at", o.worst_at)?;
+        Ok(Some(d))
     }
 
     /// The image (a `brainshift.Image`, on this grid) warped into the result's

@@ -240,6 +240,21 @@ def test_a_surface_measurement_returns_the_warped_image_field_surface_and_report
     assert np.allclose(w.ijk_to_world_matrix, img.affine, atol=1e-4)
     assert np.abs(w.image.T - nibabel.load(fixtures / IMAGE).get_fdata()).max() > 50  # it moved
 
+    # The report's account of the map between brain and skull: the numbers of `brainshift
+    # warp`'s "outside the brain" line for the same result.
+    import re
+
+    out = rep["serve"]["outside"]
+    line = re.search(
+        r"outside the brain: (\d+) gap voxels extended harmonically \(zero at the skull; (\d+) iterations, "
+        r"residual ([0-9.e+-]+)\); det\(I \+ grad d\) min ([0-9.-]+).*, (\d+) voxels <= 0",
+        o.stdout + o.stderr,
+    )
+    assert line, o.stdout + o.stderr
+    assert out["boundary"] == "skull" and out["gap_voxels"] == int(line[1]) > 0
+    assert out["iterations"] == int(line[2]) and out["folding_voxels"] == int(line[5])
+    assert abs(out["min_det"] - float(line[4])) <= 5e-4 and out["residual"] == pytest.approx(float(line[3]), rel=0.06)
+
     field, _ = r.field(fixtures / IMAGE)
     f = got["DisplacementField"]
     assert f.image.shape == expected.T.shape + (3,)

@@ -10,7 +10,8 @@ is solved warm from the last good state and answered, to that client, with:
 * IMAGE ``DisplacementField``: d(y) = X(y) − y on that grid, 3 components, RAS mm (a grid
   transform's displacement: where each intra-operative voxel came from);
 * POLYDATA ``DeformedBrain``: the deformed brain surface, RAS mm;
-* STRING ``Report``: the run's report as JSON (the keys of report.json).
+* STRING ``Report``: the run's report as JSON (the keys of report.json, and ``serve``: the
+  solve and image seconds and ``outside``, what the map does between brain and skull).
 
 Measurements (geometry in RAS, mm, Slicer's world frame; converted to the scene's frame
 and unit):
@@ -170,13 +171,24 @@ class Brainshift:
             if self.surface:
                 points, tris, _ = r.surface()
                 yield igtl.pack(igtl.TriangleMesh(self.frame.to_ras(points), tris, "DeformedBrain"))
-            report = dict(r.report, serve={"solve_seconds": solved - t0, "image_seconds": t_image - solved})
+            outside = m.outside
+            report = dict(
+                r.report,
+                serve={"solve_seconds": solved - t0, "image_seconds": t_image - solved, "outside": outside},
+            )
             yield igtl.string_message(json.dumps(report), "Report")
             self.log(
                 f"  solved in {solved - t0:.2f} s ({report['steps']} Newton, {report['linear_iterations']} GMRES, "
                 f"max displacement {report['max_displacement']:.2f} {report['units']}); WarpedImage packed "
                 f"{t_image - solved:.2f} s later ({m.extension_iterations} extension iterations)"
             )
+            if outside and outside["folding_voxels"] > 0:
+                at = outside["min_det_at"]
+                where = f" near RAS ({at[0]:.1f}, {at[1]:.1f}, {at[2]:.1f}) mm" if at else ""
+                self.log(
+                    f"  warning: the map between brain and skull folds at {outside['folding_voxels']} voxels{where} "
+                    f"(det(I + grad d) min {outside['min_det']:.3f}): there the warped image repeats tissue"
+                )
 
         return replies()
 
