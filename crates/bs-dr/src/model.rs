@@ -116,38 +116,6 @@ pub struct Model {
 }
 
 /// Reference coordinates of an element's nodes (indices checked by [`check_element`]).
-/// The tetrahedra in the order of their centroids along a Morton (Z-order) curve through
-/// the mesh's bounding box: neighbours in space are neighbours in memory, so the force
-/// kernel's gathers of node data hit the caches (a Gmsh mesh lists its elements in the
-/// order its mesher made them).
-fn spatial_order(tets: &[Tet], nodes: &[Point3<f64>]) -> Vec<usize> {
-    let centroid =
-        |t: &Tet| t.nodes.iter().fold(Vector3::zeros(), |s, &a| s + nodes[a as usize].coords) / 4.0;
-    let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
-    for t in tets {
-        let c = centroid(t);
-        lo = lo.inf(&c);
-        hi = hi.sup(&c);
-    }
-    let span = (hi - lo).max().max(f64::MIN_POSITIVE);
-    let spread = |mut v: u64| {
-        // The low 21 bits of v spread to every third bit.
-        v &= 0x1f_ffff;
-        v = (v | v << 32) & 0x1f_0000_0000_ffff;
-        v = (v | v << 16) & 0x1f_0000_ff00_00ff;
-        v = (v | v << 8) & 0x100f_00f0_0f00_f00f;
-        v = (v | v << 4) & 0x10c3_0c30_c30c_30c3;
-        (v | v << 2) & 0x1249_2492_4924_9249
-    };
-    let key = |t: &Tet| {
-        let q = (centroid(t) - lo) / span * 2_097_151.0;
-        spread(q.x as u64) | spread(q.y as u64) << 1 | spread(q.z as u64) << 2
-    };
-    let mut order: Vec<(u64, usize)> = tets.iter().enumerate().map(|(k, t)| (key(t), k)).collect();
-    order.sort_unstable();
-    order.into_iter().map(|(_, k)| k).collect()
-}
-
 fn corners<const N: usize>(mesh: &Mesh, nodes: &[usize]) -> [Point3<f64>; N] {
     std::array::from_fn(|a| mesh.nodes[nodes[a]])
 }
@@ -246,9 +214,6 @@ impl Model {
                 }
             }
         }
-        let order = spatial_order(&tets, &mesh.nodes);
-        let tets: Vec<Tet> = order.iter().map(|&k| tets[k]).collect();
-        let tet_elem: Vec<u32> = order.iter().map(|&k| tet_elem[k]).collect();
         let list = ElementList {
             solids: solids.to_vec(),
             tet: options.tet,
@@ -395,78 +360,6 @@ mod tests {
 
     use super::*;
     use crate::tests::distorted_mesh;
-
-    #[test]
-    fn tetrahedra_run_in_space_order_and_answer_in_mesh_order() {
-        // A jittered 8³ Kuhn box with its elements listed in a scrambled order: the model
-        // runs them along a Morton curve, so consecutive tetrahedra are neighbours (their
-        // centroids 0.085 apart on average for cells of 0.125, against 0.81 in the
-        // scrambled list); forces, element measures and the inverted element it names are
-        // those of the mesh's own order.
-        let mut mesh = bs_mesh::structured::jittered_box_mesh(8, 1.0, true, 0.2, 3);
-        let n = mesh.elements.len();
-        let scramble: Vec<usize> = (0..n).map(|k| (k * 1031) % n).collect();
-        mesh.elements = scramble.iter().map(|&k| mesh.elements[k]).collect();
-        mesh.element_ids = (1..=n as u64).map(|i| 10 * i).collect();
-        let solid =
-            Solid { material: Material::neo_hookean(3000.0, 0.45).unwrap(), density: 1000.0 };
-        let opts = ModelOptions { tet: TetFormulation::T4Anp, hourglass: 0.1 };
-        let model = Model::uniform(&mesh, solid, opts).unwrap();
-        let centroid = |nodes: &[usize]| {
-            nodes.iter().fold(Vector3::zeros(), |s, &a| s + mesh.nodes[a].coords) / 4.0
-        };
-        let step = |order: &mut dyn Iterator<Item = usize>| {
-            let c: Vec<Vector3<f64>> = order.map(|e| centroid(mesh.elements[e].nodes())).collect();
-            c.windows(2).map(|w| (w[1] - w[0]).norm()).sum::<f64>() / (c.len() - 1) as f64
-        };
-        let listed = step(&mut (0..n));
-        let run = step(&mut model.elements.tet_elem.iter().map(|&e| e as usize));
-        assert!(
-            run < 0.15 && listed > 0.3,
-            "mean step {run} in the model's order, {listed} listed"
-        );
-        // Internal forces against a model of the unscrambled mesh, node by node.
-        let plain = bs_mesh::structured::jittered_box_mesh(8, 1.0, true, 0.2, 3);
-        let reference = Model::uniform(&plain, solid, opts).unwrap();
-        let u: Vec<Vector3<f64>> = mesh
-            .nodes
-            .iter()
-            .map(|p| Vector3::new(0.05 * p.y * p.z, -0.03 * p.x, 0.02 * (p.x + p.y)))
-            .collect();
-        let forces = |m: &Model| {
-            let mut f = vec![Vector3::zeros(); m.node_count()];
-            m.internal_forces_into(&u, &mut m.workspace(), &mut f).unwrap();
-            f
-        };
-        let (a, b) = (forces(&model), forces(&reference));
-        let scale = b.iter().map(|v| v.amax()).fold(0.0, f64::max);
-        for (x, y) in a.iter().zip(&b) {
-            assert!((x - y).amax() <= 1e-12 * scale, "{x} vs {y}");
-        }
-        // Element measures are indexed like the mesh's elements.
-        let (ma, mb) =
-            (model.element_measures(&u).unwrap(), reference.element_measures(&u).unwrap());
-        for (k, &e) in scramble.iter().enumerate() {
-            assert!((ma.volume_ratio[k] - mb.volume_ratio[e]).abs() <= 1e-14);
-        }
-        // An inverted element is named by its mesh index and id.
-        let mut bad = u.clone();
-        let victim = mesh.elements[5].nodes()[0];
-        bad[victim] += Vector3::new(3.0, 3.0, 3.0);
-        let err = model.internal_forces_into(
-            &bad,
-            &mut model.workspace(),
-            &mut vec![Vector3::zeros(); model.node_count()],
-        );
-        let inv = err.unwrap_err();
-        let first = (0..n).find(|&e| {
-            let x = |a: usize| mesh.nodes[a] + bad[a];
-            let t = mesh.elements[e].nodes();
-            (x(t[1]) - x(t[0])).cross(&(x(t[2]) - x(t[0]))).dot(&(x(t[3]) - x(t[0]))) <= 0.0
-        });
-        assert_eq!(Some(inv.element), first);
-        assert_eq!(inv.element_id, 10 * (inv.element as u64 + 1));
-    }
 
     #[test]
     fn model_errors_name_the_element() {

@@ -1,7 +1,6 @@
-//! The elements of a model as the assembly runs them: tetrahedra (in space order:
-//! `Model::new` sorts them along a Morton curve) then hexahedra, each with its mesh element
-//! index; their blocks of four for the SIMD kernels, the solids, the node → slot map and
-//! the T4ANP nodal volumes. Built once by `Model::new`.
+//! The elements of a model as the assembly runs them: tetrahedra then hexahedra (each with
+//! its mesh element index), their blocks of four for the SIMD kernels, the solids, the
+//! node → slot map and the T4ANP nodal volumes. Built once by `Model::new`.
 
 use crate::element::{ElementView, Hex, Solid, Tet, TetFormulation};
 use crate::kernels::layout::{HexBlock, TetBlock, hex_blocks, tet_blocks};
