@@ -15,6 +15,7 @@ use super::iterate::Iterate;
 use super::line_search::{self, Outcome};
 use super::linear::forces;
 use super::loading::{self, Schedule};
+use super::merit::Merit;
 use super::outcome::NewtonKrylovError;
 use super::problem::Problem;
 use super::refresh;
@@ -165,6 +166,10 @@ pub(crate) fn solve(
     }
 }
 
+/// One jumping contact node (see [`line_search`]) allowed per this many contact nodes (at
+/// least one).
+const MAX_JUMPS_PER: usize = 1000;
+
 /// The line search along `it.direction` from the first trial `first`; the trial taken is
 /// left in `it.trial_u` / `it.trial_f`. `None` when no trial could be evaluated.
 fn search(
@@ -177,7 +182,7 @@ fn search(
 ) -> Result<Option<(f64, f64)>, NewtonKrylovError> {
     let phi = it.phi;
     let Iterate { u, trial_u, trial_f, ws, direction, .. } = it;
-    let mut eval = |alpha: f64| -> Result<Option<f64>, NewtonKrylovError> {
+    let mut eval = |alpha: f64| -> Result<Option<Merit>, NewtonKrylovError> {
         trial_u
             .par_iter_mut()
             .zip(u.par_iter().zip(direction.par_iter()))
@@ -186,11 +191,13 @@ fn search(
             return Ok(None);
         }
         let t = Instant::now();
-        let m = pb.merit(trial_u, trial_f, contact)?;
+        let m = pb.merit_split(trial_u, trial_f, contact, phi)?;
         work.time.contact += t.elapsed();
         Ok(Some(m))
     };
-    let (outcome, last) = line_search::search(&pb.params.line_search, first, phi, load, &mut eval)?;
+    let max_jumps = (pb.nodes.len() / MAX_JUMPS_PER).max(1);
+    let p = &pb.params.line_search;
+    let (outcome, last) = line_search::search(p, first, phi, load, max_jumps, &mut eval)?;
     if let Outcome::Best { alpha, .. } = outcome
         && alpha != last
     {

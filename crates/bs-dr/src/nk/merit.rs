@@ -18,7 +18,31 @@ use crate::contact::Contact;
 use crate::linalg::twolevel::Projector;
 use crate::model::Model;
 
-/// The Euclidean norm of the natural residual (see the module documentation).
+/// The natural residual of a trial, and what it would be without the contact nodes whose
+/// own term exceeds a bound (see [`natural_residual`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Merit {
+    /// The Euclidean norm of the natural residual.
+    pub value: f64,
+    /// The same without the terms above the bound.
+    pub without_jumps: f64,
+    /// Contact nodes whose term is above the bound.
+    pub jumps: usize,
+}
+
+#[cfg(test)]
+impl Merit {
+    /// A merit with no jumps.
+    pub(crate) fn plain(value: f64) -> Self {
+        Merit { value, without_jumps: value, jumps: 0 }
+    }
+}
+
+/// The natural residual (see the module documentation), with the contact nodes whose own
+/// term (a length) exceeds `jump` counted and also left out of [`Merit::without_jumps`]. On a faceted skull the projection
+/// is discontinuous where a trial point crosses the medial axis of a concave crease (the
+/// closest point jumps from one face to the other): such a node's term jumps along the line
+/// whatever the rest of the residual does.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn natural_residual(
     model: &Model,
@@ -29,7 +53,8 @@ pub(crate) fn natural_residual(
     gamma: &[f64],
     pi: &Projector,
     contact: &mut dyn Contact,
-) -> Result<f64, NewtonKrylovError> {
+    jump: f64,
+) -> Result<Merit, NewtonKrylovError> {
     let reference = model.reference();
     // Free nodes: the fixed components are projected out. Fixed-size chunks summed in order:
     // the same value for any thread count.
@@ -47,12 +72,20 @@ pub(crate) fn natural_residual(
         })
         .collect();
     let mut m: f64 = chunks.iter().sum();
+    let (mut jumped, mut jumps) = (0.0, 0);
+    let jump2 = jump * jump;
     for (k, &a) in contact_nodes.iter().enumerate() {
         let x = reference[a] + u[a];
         let y = x - pi.matrix[a] * f[a] * gamma[a];
         let proj = contact.project(k, &y).ok_or_else(NewtonKrylovError::cannot_project)?;
         let target = if proj.outside { proj.point } else { y };
-        m += (x - target).norm_squared();
+        let term = (x - target).norm_squared();
+        if term > jump2 {
+            jumped += term;
+            jumps += 1;
+        }
+        m += term;
     }
-    Ok(m.sqrt())
+    let without_jumps = (m - jumped).max(0.0).sqrt();
+    Ok(Merit { value: m.sqrt(), without_jumps, jumps })
 }

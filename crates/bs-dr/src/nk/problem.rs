@@ -3,6 +3,7 @@
 
 use bs_mesh::Vector3;
 
+use super::merit::Merit;
 use super::outcome::NewtonKrylovError;
 use super::refresh::Preconditioners;
 use super::{NewtonKrylovParams, Preparation};
@@ -152,6 +153,18 @@ impl<'a> Problem<'a> {
         f: &[Vector3<f64>],
         contact: &mut dyn Contact,
     ) -> Result<f64, NewtonKrylovError> {
+        self.merit_split(u, f, contact, f64::INFINITY).map(|m| m.value)
+    }
+
+    /// The natural residual of `(u, f)`, with the contact nodes whose own term exceeds
+    /// `jump` counted apart ([`Merit`]).
+    pub(crate) fn merit_split(
+        &self,
+        u: &[Vector3<f64>],
+        f: &[Vector3<f64>],
+        contact: &mut dyn Contact,
+        jump: f64,
+    ) -> Result<Merit, NewtonKrylovError> {
         super::merit::natural_residual(
             self.model,
             u,
@@ -161,6 +174,7 @@ impl<'a> Problem<'a> {
             self.gamma,
             &self.fixed,
             contact,
+            jump,
         )
     }
 }
