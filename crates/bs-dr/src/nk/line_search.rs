@@ -12,12 +12,12 @@
 //!
 //! A full step whose residual rose only at a few contact nodes, each by a jump larger than
 //! the whole residual before the step, is accepted when the rest of the residual decreased
-//! enough: on a faceted skull such a node crossed the medial axis of a concave crease and
-//! its closest point jumped to the other face, a discontinuity of the residual that no
-//! step length removes (shorter steps only approach it: on the 852k-tet brain three
-//! iterations took α = 1/4, 1/8, 1/16 against one node's jump before the best trial,
-//! the full step, was taken). The next iteration's active set puts the node on its new
-//! feature.
+//! enough. On a faceted skull the closest point of a trial point jumps from one face to its
+//! neighbour where the trial point crosses the set of points equidistant from both: that
+//! node's term is discontinuous along the line, and shorter steps only approach the jump.
+//! On the 852k-tet brain one node's closest point jumped 0.06 mm to the next face, and
+//! three iterations took α = 1/4, 1/8, 1/16 in front of it before the best trial, the full
+//! step, was taken. The next iteration's active set puts the node on its new face.
 
 use super::merit::Merit;
 use super::outcome::NewtonKrylovError;

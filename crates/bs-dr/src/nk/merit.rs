@@ -39,10 +39,10 @@ impl Merit {
 }
 
 /// The natural residual (see the module documentation), with the contact nodes whose own
-/// term (a length) exceeds `jump` counted and also left out of [`Merit::without_jumps`]. On a faceted skull the projection
-/// is discontinuous where a trial point crosses the medial axis of a concave crease (the
-/// closest point jumps from one face to the other): such a node's term jumps along the line
-/// whatever the rest of the residual does.
+/// term (a length) exceeds `jump` counted and also left out of [`Merit::without_jumps`]. On
+/// a faceted skull the projection is discontinuous where a trial point crosses the points
+/// equidistant from two faces (its closest point jumps from one to the other): such a node's
+/// term jumps along the line whatever the rest of the residual does.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn natural_residual(
     model: &Model,
