@@ -4,7 +4,7 @@
 
 use bs_dr::{
     DrParams, DynamicRelaxation, Newton, NewtonKrylov, NewtonKrylovParams, NewtonParams, Progress,
-    Solution, SolveError, Solver, WarmStart,
+    Solution, SolveError, Solver, TwoLevelParams, WarmStart,
 };
 
 use crate::compose::Composed;
@@ -26,6 +26,10 @@ pub struct SolveSettings {
     pub ramp_steps: usize,
     /// Newton–Krylov's largest linear-solve relative residual (its default when `None`).
     pub forcing_max: Option<f64>,
+    /// Newton–Krylov keeps `K₀` to rebuild the preconditioner's coarse matrix for the contact
+    /// set of each load level (`bs_dr::TwoLevelParams::contact_coarse`): set by a live
+    /// [`Session`](crate::Session), whose updates start with nodes held on the skull.
+    pub contact_coarse: bool,
 }
 
 impl SolveSettings {
@@ -38,6 +42,7 @@ impl SolveSettings {
             max_steps: p.scene.solver.max_steps,
             ramp_steps: p.scene.solver.ramp_steps,
             forcing_max: None,
+            contact_coarse: false,
         }
     }
 }
@@ -57,6 +62,10 @@ fn newton_krylov_params(s: &SolveSettings, load_scale: f64) -> NewtonKrylov {
             .forcing_max
             .map_or(defaults.forcing_active_set, |f| defaults.forcing_active_set.max(f)),
         forcing_min: s.forcing_max.map_or(defaults.forcing_min, |f| defaults.forcing_min.min(f)),
+        preconditioner: TwoLevelParams {
+            contact_coarse: s.contact_coarse,
+            ..defaults.preconditioner
+        },
         ..defaults
     })
 }

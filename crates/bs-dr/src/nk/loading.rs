@@ -95,6 +95,11 @@ pub(crate) fn direction(
         &mut it.particular,
         &mut it.springs,
     );
+    // The coarse matrix for the contact constraints (live sessions; see
+    // `TwoLevel::constrain_coarse`).
+    let t = Instant::now();
+    pb.tl().constrain_coarse(&mut it.cons);
+    work.time.preconditioner += t.elapsed();
     let lin = Linearisation {
         model: pb.model,
         u: &it.u,

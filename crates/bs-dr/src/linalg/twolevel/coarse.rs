@@ -101,17 +101,57 @@ pub(crate) fn galerkin(pt: &NodeRows, kp: &NodeRows, nc: usize) -> Result<Coarse
             |acc, i| {
                 let (nodes, vals) = pt.row(i);
                 for (&a, pa) in nodes.iter().zip(vals) {
-                    let (cols, kvals) = kp.row(a as usize);
-                    for (&j, kv) in cols.iter().zip(kvals) {
-                        if j as usize <= i {
-                            acc.add(j, pa.dot(kv));
-                        }
-                    }
+                    add_row(acc, i, pa, kp, a);
                 }
                 acc.drain()
             },
         )
         .collect();
+    factor(nc, &rows)
+}
+
+/// The coarse factor of `(Π P)ᵀ (K P + K E)` (`pt` is `Pᵀ`, `kp` is `K P`, `ke` is `K E`
+/// with `E = (Π − I) P`): the Galerkin matrix of the constrained operator `Π K Π`.
+pub(crate) fn galerkin_projected(
+    pt: &NodeRows,
+    pi: &Projector,
+    kp: &NodeRows,
+    ke: &NodeRows,
+    nc: usize,
+) -> Result<Coarse, TwoLevelError> {
+    let rows: Vec<Vec<(u32, f64)>> = (0..nc)
+        .into_par_iter()
+        .with_min_len(16)
+        .map_init(
+            || Accumulator::<f64>::new(nc),
+            |acc, i| {
+                let (nodes, vals) = pt.row(i);
+                for (&a, pa) in nodes.iter().zip(vals) {
+                    let m = &pi.matrix[a as usize];
+                    let pa = if pi.constrained[a as usize] { m * pa } else { *pa };
+                    add_row(acc, i, &pa, kp, a);
+                    add_row(acc, i, &pa, ke, a);
+                }
+                acc.drain()
+            },
+        )
+        .collect();
+    factor(nc, &rows)
+}
+
+/// `acc_j += p · (KP)_aj` for the columns `j ≤ i` of row `a` of `kp`.
+#[inline]
+fn add_row(acc: &mut Accumulator<f64>, i: usize, p: &Vector3<f64>, kp: &NodeRows, a: u32) {
+    let (cols, kvals) = kp.row(a as usize);
+    for (&j, kv) in cols.iter().zip(kvals) {
+        if j as usize <= i {
+            acc.add(j, p.dot(kv));
+        }
+    }
+}
+
+/// The sparse Cholesky factor of the coarse matrix whose lower triangle is `rows`.
+fn factor(nc: usize, rows: &[Vec<(u32, f64)>]) -> Result<Coarse, TwoLevelError> {
     let mut triplets = Vec::with_capacity(rows.iter().map(Vec::len).sum());
     let mut max_diag = 0.0f64;
     for (i, row) in rows.iter().enumerate() {

@@ -129,17 +129,17 @@ impl TwoLevel {
         self.chebyshev(con, r, x, d, t, k);
         // Residual after pre-smoothing, coarse correction, and the residual after it.
         self.op_with(pi, x, k, r, |a, ra, y| *ra = b[a] - y);
-        self.coarse_correct(pi, r, e, coarse, mem);
+        self.coarse_correct(con, r, e, coarse, mem);
         x.par_iter_mut().zip(e.par_iter()).with_min_len(ROWS).for_each(|(xa, ea)| *xa += ea);
         self.op_with(pi, e, k, r, |_, ra, y| *ra -= y);
         // Post-smoothing accumulates into x directly.
         self.chebyshev(con, r, x, d, t, k);
     }
 
-    /// `e = Π P A_c⁻¹ Pᵀ Π r`.
+    /// `e = Π P A_c⁻¹ Pᵀ Π r`, `A_c` the constraints' coarse matrix if they have one.
     fn coarse_correct(
         &self,
-        pi: &Projector,
+        con: &Constraints,
         r: &[Vector3<f64>],
         e: &mut [Vector3<f64>],
         c: &mut [f64],
@@ -154,8 +154,13 @@ impl TwoLevel {
             }
             *ci = acc;
         });
-        let llt = LltRef::new(&self.coarse.symbolic, &self.coarse.values);
+        let coarse = con.coarse.as_deref().unwrap_or(&self.coarse);
+        let llt = LltRef::new(&coarse.symbolic, &coarse.values);
         let nc = c.len();
+        let need = coarse.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq);
+        if mem.len() < need.unaligned_bytes_required() {
+            *mem = MemBuffer::new(need);
+        }
         llt.solve_in_place_with_conj(
             Conj::No,
             MatMut::from_column_major_slice_mut(c, nc, 1),
@@ -163,6 +168,7 @@ impl TwoLevel {
             MemStack::new(mem),
         );
         let c: &[f64] = c;
+        let pi = &con.projector;
         e.par_iter_mut().enumerate().with_min_len(256).for_each(|(a, ea)| {
             let (cols, vals) = self.p.row(a);
             let mut acc = Vector3::zeros();

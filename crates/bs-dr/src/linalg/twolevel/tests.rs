@@ -135,3 +135,99 @@ fn the_cycle_is_symmetric_and_positive() {
         assert!((fixed.matrix[a] * bx[a] - bx[a]).norm() <= 1e-14 * bx[a].norm().max(1.0));
     }
 }
+
+/// GMRES iterations (to 1e-8) of `Π K₀ Π x = Π b` with the two-level preconditioner `tl`
+/// under the constraints `con`.
+fn constrained_iterations(m: &Model, tl: &TwoLevel, con: &super::Constraints) -> usize {
+    let n = m.node_count();
+    let pi = &con.projector;
+    let mut b: Vec<Vector3<f64>> =
+        m.reference().iter().map(|x| Vector3::new(0.1 * x.z, 0.05 * x.y, -0.05 * x.x)).collect();
+    pi.apply(&mut b);
+    let k = m.linear_stiffness();
+    let mut ks = k.scratch();
+    let mut ts = tl.scratch();
+    let mut op = |x: &[Vector3<f64>], y: &mut [Vector3<f64>]| {
+        k.mul(x, y, &mut ks);
+        pi.apply(y);
+    };
+    let mut prec = |r: &[Vector3<f64>], z: &mut [Vector3<f64>]| tl.apply(con, r, z, &mut ts);
+    let mut x = vec![Vector3::zeros(); n];
+    let info = Gmres::new(n, 60).solve(&mut op, &mut prec, &b, &mut x, 1e-8, 3000);
+    assert!(info.converged, "{info:?}");
+    info.iterations
+}
+
+/// `A⁻¹ c` with a coarse factor.
+fn coarse_solve(c: &super::coarse::Coarse, rhs: &[f64]) -> Vec<f64> {
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::sparse::linalg::cholesky::LltRef;
+    use faer::{Conj, MatMut, Par};
+    let mut x = rhs.to_vec();
+    let n = x.len();
+    let mut mem = MemBuffer::new(c.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
+    LltRef::new(&c.symbolic, &c.values).solve_in_place_with_conj(
+        Conj::No,
+        MatMut::from_column_major_slice_mut(&mut x, n, 1),
+        Par::Seq,
+        MemStack::new(&mut mem),
+    );
+    x
+}
+
+#[test]
+fn the_coarse_matrix_of_contact_constraints_is_their_galerkin_matrix_and_saves_iterations() {
+    use super::coarse::galerkin;
+    use super::rows::{NodeRows, product, transpose};
+    let m = model(TetFormulation::T4Anp, 6);
+    let fixed = bottom_fixed(&m);
+    let params = TwoLevelParams { contact_coarse: true, ..TwoLevelParams::default() };
+    let tl =
+        TwoLevel::new(m.linear_stiffness(), m.reference(), m.mean_edge(), &fixed, params).unwrap();
+    // The top face held along a curved surface's normals and a patch of a side face along
+    // its normal, as contact holds nodes on the skull.
+    let mut con = tl.constraints();
+    let mut added = [Vector3::zeros(); 3];
+    for (a, x) in m.reference().iter().enumerate() {
+        if x.z > 10.0 - 1e-9 {
+            let n = Vector3::new(0.3 * (x.x - 5.0), 0.3 * (x.y - 5.0), 5.0).normalize();
+            tl.constrain(&mut con, a, &[n], &mut added);
+        }
+        if x.x > 10.0 - 1e-9 && x.z > 3.0 {
+            tl.constrain(&mut con, a, &[Vector3::x()], &mut added);
+        }
+    }
+    let with_setup_coarse = constrained_iterations(&m, &tl, &con);
+    assert!(tl.constrain_coarse(&mut con));
+    let with_constrained_coarse = constrained_iterations(&m, &tl, &con);
+    // Measured: 38 against 43 iterations (6³ cells, ν = 0.49; on the MNI152 demo's warm
+    // updates 177 against 246 over five updates).
+    assert!(
+        with_constrained_coarse + 3 <= with_setup_coarse,
+        "{with_constrained_coarse} vs {with_setup_coarse}"
+    );
+    // Against the Galerkin matrix of the explicitly projected prolongator, `(Π P)ᵀ K₀ (Π P)`
+    // from the whole product (the incremental one adds `K₀ E` to the kept `K₀ P`).
+    let r = tl.retained.as_ref().unwrap();
+    let pi = &con.projector;
+    let rows = (0..r.p.rows())
+        .map(|a| {
+            let (cols, vals) = r.p.row(a);
+            cols.iter().zip(vals).map(|(&j, v)| (j, pi.matrix[a] * v)).collect()
+        })
+        .collect();
+    let pp = NodeRows::from_rows(rows);
+    let nc = tl.coarse_size();
+    let k = m.linear_stiffness();
+    let direct =
+        galerkin(&transpose(&pp, nc), &product(&k.assembled, k.nodal.as_ref(), &pp), nc).unwrap();
+    let rhs: Vec<f64> = (0..nc).map(|i| (0.7 * i as f64).sin() + 0.1).collect();
+    let (x1, x2) = (coarse_solve(con.coarse.as_ref().unwrap(), &rhs), coarse_solve(&direct, &rhs));
+    let err = x1.iter().zip(&x2).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    let scale = x2.iter().map(|v| v.abs()).fold(0.0, f64::max);
+    assert!(err <= 1e-9 * scale, "{err} against {scale}");
+    // No node held: back to the setup's coarse matrix.
+    let mut free = tl.constraints();
+    assert!(!tl.constrain_coarse(&mut free));
+    assert!(free.coarse.is_none());
+}
