@@ -28,7 +28,7 @@ pub struct SolveSettings {
     pub forcing_max: Option<f64>,
     /// Newton–Krylov keeps `K₀` to rebuild the preconditioner's coarse matrix for the contact
     /// set of each load level (`bs_dr::TwoLevelParams::contact_coarse`): set by a live
-    /// [`Session`](crate::Session), whose updates start with nodes held on the skull.
+    /// `Session`, whose updates start with nodes held on the skull.
     pub contact_coarse: bool,
 }
 

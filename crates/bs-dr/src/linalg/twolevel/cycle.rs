@@ -7,8 +7,9 @@ use faer::sparse::linalg::cholesky::LltRef;
 use faer::{Conj, MatMut, Par};
 use rayon::prelude::*;
 
+use super::constraints::Constraints;
 use super::operator::OperatorScratch;
-use super::projector::{Constraints, Projector};
+use super::projector::Projector;
 use super::setup::TwoLevel;
 
 /// Nodes per rayon task in the cycle's passes: few enough tasks that the fork-join overhead

@@ -12,18 +12,21 @@
 //! * **Constraints**: every vector lives in the subspace left by the constraints of each node
 //!   (prescribed components, and the normal directions of nodes in contact), applied as the
 //!   nodal orthogonal projector `Π`. The cycle runs on `Π K₀ Π` with the block-diagonal
-//!   inverse of the projected blocks; the coarse problem stays the unconstrained one (the
-//!   contact set changes every Newton iteration and is small), projected on both sides.
+//!   inverse of the projected blocks; the coarse problem is the one of the fixed components,
+//!   projected on both sides, or, when the setup kept `K₀` for it (live sessions), the
+//!   Galerkin one of `Π K₀ Π` for a solve's contact set (`TwoLevel::constrain_coarse`).
 //!
 //! Everything here depends only on the mesh, the materials and the fixed components: it is
 //! computed once, before the loads are known.
 //!
-//! Files: [`params`] (parameters, errors), [`projector`] (the nodal constraints), [`rows`]
+//! Files: [`params`] (parameters, errors), [`projector`] (the nodal projector),
+//! [`constraints`] (a solve's constraints as the cycle sees them), [`rows`]
 //! (nodal sparse rows and their products), [`operator`] (`K₀` fused in single precision for
 //! the smoother), [`coarse`] (aggregates, Galerkin factor),
 //! [`setup`] (building the preconditioner), [`cycle`] (applying it).
 
 pub mod coarse;
+pub mod constraints;
 pub mod cycle;
 pub(crate) mod operator;
 pub mod params;
@@ -31,9 +34,10 @@ pub mod projector;
 pub mod rows;
 pub mod setup;
 
+pub use constraints::Constraints;
 pub use cycle::TwoLevelScratch;
 pub use params::{TwoLevelError, TwoLevelParams};
-pub use projector::{Constraints, Projector};
+pub use projector::Projector;
 pub use setup::TwoLevel;
 
 #[cfg(test)]

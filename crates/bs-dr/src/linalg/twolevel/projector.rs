@@ -1,13 +1,9 @@
 //! Nodal constraints: the orthogonal projector `Π` onto the directions each node may move in
-//! (prescribed components, contact normals), and the constraints of one solve as the
-//! preconditioner sees them (the projector and the matching block-diagonal inverses).
+//! (prescribed components, contact normals), and the inverse of a projected diagonal block.
 
 use bs_mesh::Vector3;
 use nalgebra::Matrix3;
 use rayon::prelude::*;
-use std::sync::Arc;
-
-use super::coarse::Coarse;
 
 /// Nodal constraints: the orthogonal projector onto the admissible directions of each node.
 #[derive(Debug, Clone)]
@@ -46,22 +42,6 @@ impl Projector {
                 }
             });
     }
-}
-
-/// The constraints of one solve as the preconditioner sees them: the nodal projector and the
-/// matching block-diagonal inverses (updated when the contact set changes).
-#[derive(Debug, Clone)]
-pub struct Constraints {
-    /// The nodal projector `Π`.
-    pub projector: Projector,
-    /// Inverses of the projected diagonal blocks, `(Π_a K_aa Π_a)⁺`.
-    pub(super) inv_diag: Vec<Matrix3<f64>>,
-    /// The coarse factor of `Pᵀ Π K₀ Π P` for these constraints, when one was built
-    /// ([`TwoLevel::constrain_coarse`](super::TwoLevel::constrain_coarse)); otherwise the
-    /// preconditioner's own, built with the fixed components only.
-    pub(super) coarse: Option<Arc<Coarse>>,
-    /// The nodal projectors that coarse factor was built for (empty without one).
-    pub(super) coarse_for: Vec<Matrix3<f64>>,
 }
 
 /// Inverse of `Π K Π` on the range of `Π`, zero on its complement.

@@ -9,9 +9,10 @@ use rayon::prelude::*;
 use std::sync::Arc;
 
 use super::coarse::{Coarse, galerkin, galerkin_projected, tentative_prolongator};
+use super::constraints::Constraints;
 use super::operator::Operator32;
 use super::params::{TwoLevelError, TwoLevelParams};
-use super::projector::{Constraints, Projector, projected_inverse};
+use super::projector::{Projector, projected_inverse};
 use super::rows::{NodeRows, NodeRows32, product, tentative_columns, transpose};
 use crate::linalg::nodal::{NodalMatrix, NodalScratch};
 use crate::linalg::sparse::max_abs;
