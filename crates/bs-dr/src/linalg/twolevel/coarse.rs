@@ -93,21 +93,7 @@ pub(crate) fn tentative_prolongator(x: &[Point3<f64>], fixed: &Projector, h: f64
 
 /// `A_c = Pᵀ (K₀ P)` assembled and factorised.
 pub(crate) fn galerkin(pt: &NodeRows, kp: &NodeRows, nc: usize) -> Result<Coarse, TwoLevelError> {
-    let rows: Vec<Vec<(u32, f64)>> = (0..nc)
-        .into_par_iter()
-        .with_min_len(16)
-        .map_init(
-            || Accumulator::<f64>::new(nc),
-            |acc, i| {
-                let (nodes, vals) = pt.row(i);
-                for (&a, pa) in nodes.iter().zip(vals) {
-                    add_row(acc, i, pa, kp, a);
-                }
-                acc.drain()
-            },
-        )
-        .collect();
-    factor(nc, &rows)
+    galerkin_with(pt, nc, |acc, i, a, pa| add_row(acc, i, pa, kp, a))
 }
 
 /// The coarse factor of `(Π P)ᵀ (K P + K E)` (`pt` is `Pᵀ`, `kp` is `K P`, `ke` is `K E`
@@ -119,6 +105,21 @@ pub(crate) fn galerkin_projected(
     ke: &NodeRows,
     nc: usize,
 ) -> Result<Coarse, TwoLevelError> {
+    galerkin_with(pt, nc, |acc, i, a, pa| {
+        let (m, constrained) = (&pi.matrix[a as usize], pi.constrained[a as usize]);
+        let pa = if constrained { m * pa } else { *pa };
+        add_row(acc, i, &pa, kp, a);
+        add_row(acc, i, &pa, ke, a);
+    })
+}
+
+/// The lower triangle of the coarse matrix, row `i` summed by `add(acc, i, a, P_ai)` over
+/// the entries of column `i` of `P`, then factorised.
+fn galerkin_with(
+    pt: &NodeRows,
+    nc: usize,
+    add: impl Fn(&mut Accumulator<f64>, usize, u32, &Vector3<f64>) + Sync,
+) -> Result<Coarse, TwoLevelError> {
     let rows: Vec<Vec<(u32, f64)>> = (0..nc)
         .into_par_iter()
         .with_min_len(16)
@@ -127,10 +128,7 @@ pub(crate) fn galerkin_projected(
             |acc, i| {
                 let (nodes, vals) = pt.row(i);
                 for (&a, pa) in nodes.iter().zip(vals) {
-                    let m = &pi.matrix[a as usize];
-                    let pa = if pi.constrained[a as usize] { m * pa } else { *pa };
-                    add_row(acc, i, &pa, kp, a);
-                    add_row(acc, i, &pa, ke, a);
+                    add(acc, i, a, pa);
                 }
                 acc.drain()
             },
