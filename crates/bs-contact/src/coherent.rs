@@ -326,6 +326,10 @@ impl ClosestPoint for CoherentContact {
         self.paper.d
     }
 
+    fn closest_exact(&self, p: &Point3<f64>) -> Option<Projection> {
+        self.paper.project_exact(p)
+    }
+
     fn name(&self) -> &'static str {
         "coherent"
     }

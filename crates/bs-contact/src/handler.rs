@@ -156,6 +156,10 @@ impl ClosestPoint for Handler {
         }
     }
 
+    fn closest_exact(&self, p: &Point3<f64>) -> Option<Projection> {
+        self.project_exact(p)
+    }
+
     fn name(&self) -> &'static str {
         match self {
             Self::Paper(h) => h.name(),

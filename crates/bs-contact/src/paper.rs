@@ -794,6 +794,10 @@ impl ClosestPoint for PaperContact {
         self.d
     }
 
+    fn closest_exact(&self, p: &Point3<f64>) -> Option<Projection> {
+        self.project_exact(p)
+    }
+
     fn name(&self) -> &'static str {
         "paper"
     }

@@ -49,6 +49,14 @@ pub trait ClosestPoint {
         f64::INFINITY
     }
 
+    /// The exact closest point of `p` at any distance, asked for an answer beyond
+    /// [`reach`](Self::reach); `None` when the handler has no other query (the default:
+    /// exhaustive handlers are exact everywhere).
+    fn closest_exact(&self, p: &Point3<f64>) -> Option<Projection> {
+        let _ = p;
+        None
+    }
+
     /// Short name for reports and benchmarks.
     fn name(&self) -> &'static str;
 }
@@ -61,6 +69,10 @@ impl<H: ClosestPoint + ?Sized> ClosestPoint for &mut H {
 
     fn reach(&self) -> f64 {
         (**self).reach()
+    }
+
+    fn closest_exact(&self, p: &Point3<f64>) -> Option<Projection> {
+        (**self).closest_exact(p)
     }
 
     fn name(&self) -> &'static str {

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use bs_contact::shapes::{self, Rng};
 use bs_contact::{
     BruteForce, ClosestPoint, CoherentContact, ContactError, Enforcer, MasterSurface, NullHandler,
-    PaperContact, PaperParams, ParryContact, check_initial, gap,
+    PaperContact, PaperParams, ParryContact, Projection, check_initial, gap,
 };
 use bs_mesh::{Point3, TriSurface, Vector3};
 use common::{cube, query_near, tol};
@@ -367,4 +367,63 @@ fn non_finite_positions_are_left_alone() {
         assert!(p[0].x.is_nan() && p[1].x == f64::INFINITY, "{name}");
         assert!((p[2] - Point3::new(0.5, 0.5, 1.0)).norm() < 1e-12, "{name}");
     }
+}
+
+/// A handler exact only within `reach` of its wall (the cavity is x ≥ 0), as the paper's
+/// algorithm is within its per-step penetration bound; beyond, it calls every point outside,
+/// as the paper's did for a node deep inside the MNI152 skull. Its exact query is right
+/// everywhere.
+struct Shallow {
+    reach: f64,
+}
+
+fn wall(p: &Point3<f64>) -> Projection {
+    Projection {
+        point: Point3::new(0.0, p.y, p.z),
+        signed_distance: p.x,
+        outside: p.x < 0.0,
+        feature: None,
+    }
+}
+
+impl ClosestPoint for Shallow {
+    fn closest(&mut self, _slave: usize, p: &Point3<f64>) -> Option<Projection> {
+        let exact = wall(p);
+        if p.x.abs() <= self.reach {
+            Some(exact)
+        } else {
+            Some(Projection { signed_distance: -p.x.abs(), outside: true, ..exact })
+        }
+    }
+
+    fn reach(&self) -> f64 {
+        self.reach
+    }
+
+    fn closest_exact(&self, p: &Point3<f64>) -> Option<Projection> {
+        Some(wall(p))
+    }
+
+    fn name(&self) -> &'static str {
+        "shallow"
+    }
+}
+
+#[test]
+fn an_outside_verdict_from_beyond_the_reach_is_checked_by_the_exact_query() {
+    let start = vec![
+        Point3::new(3.0, 1.0, 2.0), // deep inside: the handler says outside, wrongly
+        Point3::new(0.2, 0.0, 0.0), // inside, within reach
+        Point3::new(-0.3, 1.0, 0.0), // outside, within reach
+        Point3::new(-3.0, 0.0, 1.0), // deep outside: confirmed by the exact query
+    ];
+    let mut x = start.clone();
+    let mut e = Enforcer::new(Shallow { reach: 0.5 }, vec![0, 1, 2, 3], x.len()).unwrap();
+    let report = e.enforce(&mut x);
+    assert_eq!(x[0], start[0]);
+    assert_eq!(x[1], start[1]);
+    assert_eq!(x[2], Point3::new(0.0, 1.0, 0.0));
+    assert_eq!(x[3], Point3::new(0.0, 0.0, 1.0));
+    assert_eq!(report.nodes_in_contact, 2);
+    assert_eq!(report.max_penetration, 3.0);
 }
