@@ -350,9 +350,10 @@ impl NewtonKrylov {
     /// tolerance onto the surface) and the report.
     ///
     /// The correction is the exact projection the iteration used ([`Contact::project`]),
-    /// not the handler's [`Contact::enforce`]: a handler whose per-node candidate lists were
-    /// built around the reference positions can judge a node that moved far from them
-    /// outside and move it onto a distant face. On the MNI152 demo under the 8 mm surface
+    /// not the handler's [`Contact::enforce`], whose answers a handler may make exact only
+    /// near the surface (the paper's algorithm, within its per-step penetration bound): it
+    /// can judge a node deep inside outside and move it onto a distant face (bs-contact's
+    /// enforcement loop now checks such verdicts too). On the MNI152 demo under the 8 mm surface
     /// load of `cargo xtask bench serve`, `enforce` moved node 820, inside the cavity, 8.7 mm,
     /// and the converged answer (smallest J 0.054) came out with J = −1.25 and was refused.
     fn finish(
