@@ -1,6 +1,6 @@
 //! Test meshes built in code (structured grids with jittered interior nodes) and helpers.
 
-use bs_dr::{Model, ModelOptions, Solid, TetFormulation};
+use bs_dr::{Loads, Model, ModelOptions, Solid, TetFormulation};
 use bs_material::Material;
 use bs_mesh::{Mesh, Point3, Vector3, structured};
 
@@ -58,4 +58,29 @@ pub fn on_boundary(p: &Point3<f64>, size: f64) -> bool {
 
 pub fn max_diff(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
     a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).amax()))
+}
+
+/// Uniaxial compression of a unit cube (T4, ν = 0.45) by 0.2 from the top, with x = 0 and
+/// y = 0 symmetry planes and nothing on its bottom: the mesh, the model, the loads and the
+/// bottom nodes (for a floor under them, or a z = 0 symmetry plane).
+pub fn block_on_floor() -> (Mesh, Model, Loads, Vec<usize>) {
+    let material = Material::neo_hookean(3000.0, 0.45).unwrap();
+    let (mesh, model) = cube_model(Tech::T4, 3, 1.0, 0.2, material);
+    let mut loads = Loads::new(mesh.nodes.len());
+    let mut bottom = Vec::new();
+    for (i, p) in mesh.nodes.iter().enumerate() {
+        if p.x.abs() < 1e-12 {
+            loads.fix(i, 0).unwrap();
+        }
+        if p.y.abs() < 1e-12 {
+            loads.fix(i, 1).unwrap();
+        }
+        if (p.z - 1.0).abs() < 1e-12 {
+            loads.prescribe(i, 2, -0.2).unwrap();
+        }
+        if p.z.abs() < 1e-12 {
+            bottom.push(i);
+        }
+    }
+    (mesh, model, loads, bottom)
 }

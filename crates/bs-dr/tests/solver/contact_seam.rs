@@ -33,25 +33,10 @@ fn frictionless_floor_acts_as_a_symmetry_plane() {
     // contact with a rigid floor: the exact answer is the same homogeneous field
     // u = ((λt−1)x, (λt−1)y, (λz−1)z). Reference λt from the symmetry-plane DR run (which
     // the homogeneous tests check against the closed form to 1e-6).
-    let material = Material::neo_hookean(3000.0, 0.45).unwrap();
-    let (mesh, model) = cube_model(Tech::T4, 3, 1.0, 0.2, material);
-    let mut sym = Loads::new(mesh.nodes.len());
-    let mut floor = Loads::new(mesh.nodes.len());
-    for (i, p) in mesh.nodes.iter().enumerate() {
-        for loads in [&mut sym, &mut floor] {
-            if p.x.abs() < 1e-12 {
-                loads.fix(i, 0).unwrap();
-            }
-            if p.y.abs() < 1e-12 {
-                loads.fix(i, 1).unwrap();
-            }
-            if (p.z - 1.0).abs() < 1e-12 {
-                loads.prescribe(i, 2, -0.2).unwrap();
-            }
-        }
-        if p.z.abs() < 1e-12 {
-            sym.fix(i, 2).unwrap();
-        }
+    let (mesh, model, floor, bottom) = block_on_floor();
+    let mut sym = floor.clone();
+    for &i in &bottom {
+        sym.fix(i, 2).unwrap();
     }
     let dr = DynamicRelaxation::new(DrParams { tolerance: 1e-9, ..Default::default() });
     let reference = dr.solve(&model, &sym, &mut NoContact, &mut |_| {}).unwrap();

@@ -155,36 +155,11 @@ impl Contact for Planes {
     }
 }
 
-/// Uniaxial compression of a unit cube (T4, ν = 0.45) by 0.2 from the top, with x = 0 and
-/// y = 0 symmetry planes and nothing on its bottom: the model, the loads and the bottom
-/// nodes (for a floor under them).
-fn block_on_floor() -> (bs_dr::Model, Loads, Vec<usize>) {
-    let material = Material::neo_hookean(3000.0, 0.45).unwrap();
-    let (mesh, model) = cube_model(Tech::T4, 3, 1.0, 0.2, material);
-    let mut loads = Loads::new(mesh.nodes.len());
-    let mut bottom = Vec::new();
-    for (i, p) in mesh.nodes.iter().enumerate() {
-        if p.x.abs() < 1e-12 {
-            loads.fix(i, 0).unwrap();
-        }
-        if p.y.abs() < 1e-12 {
-            loads.fix(i, 1).unwrap();
-        }
-        if (p.z - 1.0).abs() < 1e-12 {
-            loads.prescribe(i, 2, -0.2).unwrap();
-        }
-        if p.z.abs() < 1e-12 {
-            bottom.push(i);
-        }
-    }
-    (model, loads, bottom)
-}
-
 #[test]
 fn frictionless_floor_acts_as_a_symmetry_plane() {
     // As the DR contact-seam test: uniaxial compression with x = 0 and y = 0 symmetry planes,
     // the floor z ≥ 0 in place of the z = 0 plane; exact answer = the symmetry-plane run.
-    let (model, floor, bottom) = block_on_floor();
+    let (_, model, floor, bottom) = block_on_floor();
     let mut sym = floor.clone();
     for &i in &bottom {
         sym.fix(i, 2).unwrap();
@@ -463,7 +438,7 @@ fn the_converged_answer_is_corrected_by_the_exact_projection_not_by_enforce() {
     // The floor test's block: the answer may differ from the honest handler's only by
     // rounding (on the MNI152 demo a wrong `enforce` had moved a node 8.7 mm and inverted
     // elements of a converged answer).
-    let (model, loads, bottom) = block_on_floor();
+    let (_, model, loads, bottom) = block_on_floor();
     let floor = |nodes: Vec<usize>| Planes {
         planes: vec![(-Vector3::z(), 0.0)],
         nodes,
