@@ -10,6 +10,7 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::{SparseColMat, Triplet};
 use faer::{Par, Side};
 use rayon::prelude::*;
+use std::sync::Arc;
 
 use super::params::TwoLevelError;
 use super::projector::Projector;
@@ -18,8 +19,16 @@ use super::rows::{Accumulator, NodeRows};
 /// The coarse factor.
 #[derive(Debug)]
 pub(crate) struct Coarse {
-    pub(super) symbolic: SymbolicCholesky<usize>,
+    /// Shared by every factor of the same pattern (the setup's and its corrections).
+    pub(super) symbolic: Arc<SymbolicCholesky<usize>>,
     pub(super) values: Vec<f64>,
+}
+
+/// The setup's coarse matrix, assembled (lower triangle) and factorised.
+#[derive(Debug)]
+pub(crate) struct Galerkin {
+    pub(crate) factor: Coarse,
+    pub(crate) matrix: SparseColMat<usize, f64>,
 }
 
 /// Geometric aggregates of spacing `h` over the nodes at `x` and their rigid-body modes (the tentative
@@ -92,34 +101,7 @@ pub(crate) fn tentative_prolongator(x: &[Point3<f64>], fixed: &Projector, h: f64
 }
 
 /// `A_c = Pᵀ (K₀ P)` assembled and factorised.
-pub(crate) fn galerkin(pt: &NodeRows, kp: &NodeRows, nc: usize) -> Result<Coarse, TwoLevelError> {
-    galerkin_with(pt, nc, |acc, i, a, pa| add_row(acc, i, pa, kp, a))
-}
-
-/// The coarse factor of `(Π P)ᵀ (K P + K E)` (`pt` is `Pᵀ`, `kp` is `K P`, `ke` is `K E`
-/// with `E = (Π − I) P`): the Galerkin matrix of the constrained operator `Π K Π`.
-pub(crate) fn galerkin_projected(
-    pt: &NodeRows,
-    pi: &Projector,
-    kp: &NodeRows,
-    ke: &NodeRows,
-    nc: usize,
-) -> Result<Coarse, TwoLevelError> {
-    galerkin_with(pt, nc, |acc, i, a, pa| {
-        let (m, constrained) = (&pi.matrix[a as usize], pi.constrained[a as usize]);
-        let pa = if constrained { m * pa } else { *pa };
-        add_row(acc, i, &pa, kp, a);
-        add_row(acc, i, &pa, ke, a);
-    })
-}
-
-/// The lower triangle of the coarse matrix, row `i` summed by `add(acc, i, a, P_ai)` over
-/// the entries of column `i` of `P`, then factorised.
-fn galerkin_with(
-    pt: &NodeRows,
-    nc: usize,
-    add: impl Fn(&mut Accumulator<f64>, usize, u32, &Vector3<f64>) + Sync,
-) -> Result<Coarse, TwoLevelError> {
+pub(crate) fn galerkin(pt: &NodeRows, kp: &NodeRows, nc: usize) -> Result<Galerkin, TwoLevelError> {
     let rows: Vec<Vec<(u32, f64)>> = (0..nc)
         .into_par_iter()
         .with_min_len(16)
@@ -128,13 +110,27 @@ fn galerkin_with(
             |acc, i| {
                 let (nodes, vals) = pt.row(i);
                 for (&a, pa) in nodes.iter().zip(vals) {
-                    add(acc, i, a, pa);
+                    add_row(acc, i, pa, kp, a);
                 }
                 acc.drain()
             },
         )
         .collect();
-    factor(nc, &rows)
+    let mut triplets = Vec::with_capacity(rows.iter().map(Vec::len).sum());
+    for (i, row) in rows.iter().enumerate() {
+        triplets.extend(row.iter().map(|&(j, v)| Triplet::new(i, j as usize, v)));
+    }
+    let matrix = SparseColMat::<usize, f64>::try_new_from_triplets(nc, nc, &triplets)
+        .map_err(|e| TwoLevelError::Factor(format!("{e:?}")))?;
+    let symbolic = factorize_symbolic_cholesky(
+        matrix.symbolic(),
+        Side::Lower,
+        SymmetricOrdering::Amd,
+        CholeskySymbolicParams::default(),
+    )
+    .map_err(|e| TwoLevelError::Factor(format!("{e:?}")))?;
+    let factor = numeric(Arc::new(symbolic), &matrix)?;
+    Ok(Galerkin { factor, matrix })
 }
 
 /// `acc_j += p · (KP)_aj` for the columns `j ≤ i` of row `a` of `kp`.
@@ -148,27 +144,11 @@ fn add_row(acc: &mut Accumulator<f64>, i: usize, p: &Vector3<f64>, kp: &NodeRows
     }
 }
 
-/// The sparse Cholesky factor of the coarse matrix whose lower triangle is `rows`.
-fn factor(nc: usize, rows: &[Vec<(u32, f64)>]) -> Result<Coarse, TwoLevelError> {
-    let mut triplets = Vec::with_capacity(rows.iter().map(Vec::len).sum());
-    let mut max_diag = 0.0f64;
-    for (i, row) in rows.iter().enumerate() {
-        for &(j, v) in row {
-            triplets.push(Triplet::new(i, j as usize, v));
-            if j as usize == i {
-                max_diag = max_diag.max(v);
-            }
-        }
-    }
-    let a = SparseColMat::<usize, f64>::try_new_from_triplets(nc, nc, &triplets)
-        .map_err(|e| TwoLevelError::Factor(format!("{e:?}")))?;
-    let symbolic = factorize_symbolic_cholesky(
-        a.symbolic(),
-        Side::Lower,
-        SymmetricOrdering::Amd,
-        CholeskySymbolicParams::default(),
-    )
-    .map_err(|e| TwoLevelError::Factor(format!("{e:?}")))?;
+/// The numeric Cholesky factor of `a` (lower triangle) on the symbolic factor of its pattern.
+pub(super) fn numeric(
+    symbolic: Arc<SymbolicCholesky<usize>>,
+    a: &SparseColMat<usize, f64>,
+) -> Result<Coarse, TwoLevelError> {
     let mut values = vec![0.0; symbolic.len_val()];
     let mut mem = MemBuffer::try_new(
         symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
@@ -188,6 +168,5 @@ fn factor(nc: usize, rows: &[Vec<(u32, f64)>]) -> Result<Coarse, TwoLevelError> 
             Default::default(),
         )
         .map_err(|_| TwoLevelError::Singular)?;
-    let _ = max_diag;
     Ok(Coarse { symbolic, values })
 }

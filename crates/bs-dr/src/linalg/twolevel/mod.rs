@@ -14,7 +14,8 @@
 //!   nodal orthogonal projector `Π`. The cycle runs on `Π K₀ Π` with the block-diagonal
 //!   inverse of the projected blocks; the coarse problem is the one of the fixed components,
 //!   projected on both sides, or, when the setup kept `K₀` for it (live sessions), the
-//!   Galerkin one of `Π K₀ Π` for a solve's contact set (`TwoLevel::constrain_coarse`).
+//!   Galerkin one of `Π K₀ Π` for a solve's contact set (`TwoLevel::constrain_coarse`),
+//!   the setup's corrected on the held nodes' rows and factorised on its symbolic factor.
 //!
 //! Everything here depends only on the mesh, the materials and the fixed components: it is
 //! computed once, before the loads are known.
@@ -22,11 +23,12 @@
 //! Files: [`params`] (parameters, errors), [`projector`] (the nodal projector),
 //! [`constraints`] (a solve's constraints as the cycle sees them), [`rows`]
 //! (nodal sparse rows and their products), [`operator`] (`K₀` fused in single precision for
-//! the smoother), [`coarse`] (aggregates, Galerkin factor),
-//! [`setup`] (building the preconditioner), [`cycle`] (applying it).
+//! the smoother), [`coarse`] (aggregates, Galerkin factor), [`correction`] (the Galerkin
+//! factor of a contact set as a correction of the setup's), [`setup`] (building the preconditioner), [`cycle`] (applying it).
 
 pub mod coarse;
 pub mod constraints;
+mod correction;
 pub mod cycle;
 pub(crate) mod operator;
 pub mod params;

@@ -3,13 +3,15 @@
 //! single-precision operator of the smoother; and the constraints of a solve.
 
 use bs_mesh::{Point3, Vector3};
+use faer::sparse::SparseColMat;
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 use std::sync::Arc;
 
-use super::coarse::{Coarse, galerkin, galerkin_projected, tentative_prolongator};
+use super::coarse::{Coarse, galerkin, tentative_prolongator};
 use super::constraints::Constraints;
+use super::correction::corrected;
 use super::operator::Operator32;
 use super::params::{TwoLevelError, TwoLevelParams};
 use super::projector::{Projector, projected_inverse};
@@ -51,13 +53,15 @@ const STALE_FRACTION: f64 = 1.0;
 /// and 18 builds against 177 and 19 with a minimum of 8).
 const STALE_MIN: usize = 50;
 
-/// `K₀`, the prolongator, its transpose and `K₀ P` (double precision), kept after the setup.
+/// `K₀`, the prolongator, `K₀ P` (double precision) and the assembled `Pᵀ K₀ P`, kept
+/// after the setup.
 #[derive(Debug)]
 pub(super) struct Retained {
     pub(super) k: NodalMatrix,
     pub(super) p: NodeRows,
-    pub(super) pt: NodeRows,
     pub(super) kp: NodeRows,
+    /// `Pᵀ K₀ P`, lower triangle (the pattern of the setup's symbolic factor).
+    pub(super) galerkin: SparseColMat<usize, f64>,
 }
 
 impl TwoLevel {
@@ -92,7 +96,7 @@ impl TwoLevel {
         let nc = tentative_columns(&tentative);
         let pt = transpose(&p, nc);
         let kp = product(&k.assembled, k.nodal.as_ref(), &p);
-        let coarse = galerkin(&pt, &kp, nc)?;
+        let g = galerkin(&pt, &kp, nc)?;
         let fixed = Constraints {
             projector: fixed.clone(),
             inv_diag,
@@ -101,7 +105,8 @@ impl TwoLevel {
         };
         let op32 = Operator32::new(&k);
         let (p32, pt32) = (p.to_f32(), pt.to_f32());
-        let retained = params.contact_coarse.then_some(Retained { k, p, pt, kp });
+        let coarse = g.factor;
+        let retained = params.contact_coarse.then_some(Retained { k, p, kp, galerkin: g.matrix });
         Ok(TwoLevel { diag, op32, params, fixed, lambda_max, p: p32, pt: pt32, coarse, retained })
     }
 
@@ -123,8 +128,9 @@ impl TwoLevel {
     /// needs more iterations (the MNI152 demo's warm updates at 4–8 mm: 189 against 246
     /// GMRES iterations). Only the rows of the held nodes change: `P_Π = P + E`,
     /// `E = (Π − I) P` on those rows, and `K₀ P_Π = K₀ P + K₀ E`, so the product is local;
-    /// the Galerkin sum and the factor are whole (30–40 ms on the demo). A failed factor
-    /// falls back to the setup's.
+    /// so is the Galerkin correction (`correction`), factorised on the setup's symbolic
+    /// factor: 10–14 ms on the demo, 35–45 ms with the whole Galerkin sum and a new
+    /// ordering. A failed factor falls back to the setup's.
     pub fn constrain_coarse(&self, con: &mut Constraints) -> bool {
         let Some(r) = &self.retained else { return false };
         let (pi, base) = (&con.projector, &self.fixed.projector);
@@ -156,9 +162,11 @@ impl TwoLevel {
                 cols.iter().zip(vals).map(|(&j, v)| (j, pi.matrix[a] * v - v)).collect()
             })
             .collect();
-        let ke = product(&r.k.assembled, r.k.nodal.as_ref(), &NodeRows::from_rows(e));
+        let e = NodeRows::from_rows(e);
+        let ke = product(&r.k.assembled, r.k.nodal.as_ref(), &e);
         // A failed factor leaves the setup's, and is not tried again for these constraints.
-        con.coarse = galerkin_projected(&r.pt, pi, &r.kp, &ke, self.pt.rows()).ok().map(Arc::new);
+        con.coarse =
+            corrected(&r.galerkin, &self.coarse.symbolic, &e, &r.kp, &ke).ok().map(Arc::new);
         con.coarse_for.clone_from(&pi.matrix);
         con.coarse.is_some()
     }
