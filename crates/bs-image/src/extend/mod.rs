@@ -13,8 +13,10 @@
 //! the operator and are solved together on the free voxels only, by iterative refinement:
 //! the residual in double precision, the correction by Jacobi-preconditioned conjugate
 //! gradients in single precision ([`pcg`]: half the memory traffic of the memory-bound
-//! iteration), until the double-precision residual meets the tolerance. Every reduction is
-//! summed in fixed chunks, so the result does not depend on the number of threads.
+//! iteration), until the double-precision residual meets the tolerance. A large problem
+//! starts from its own solution on the grid coarsened by two ([`coarse`], cascadic
+//! multigrid). Every reduction is summed in fixed chunks, so the result does not depend on
+//! the number of threads.
 //!
 //! [`jacobian`] measures whether the extended map folds: det(I + ∇d) by central differences
 //! on the free voxels (≤ 0 where the map y ↦ y + d(y) is not locally invertible).
@@ -23,6 +25,7 @@ use rayon::prelude::*;
 
 use crate::Grid;
 
+mod coarse;
 mod folding;
 mod pcg;
 mod stencil;
@@ -51,11 +54,14 @@ pub struct ExtensionParams {
     pub tolerance: f64,
     /// Conjugate-gradient iterations at most.
     pub max_iterations: usize,
+    /// Start from the solution on the grid coarsened 2 × 2 × 2 when at least this many
+    /// voxels are free (`usize::MAX`: never). Default 30 000.
+    pub coarsen_from: usize,
 }
 
 impl Default for ExtensionParams {
     fn default() -> Self {
-        ExtensionParams { tolerance: 1e-4, max_iterations: 20_000 }
+        ExtensionParams { tolerance: 1e-4, max_iterations: 20_000, coarsen_from: 30_000 }
     }
 }
 
@@ -90,9 +96,14 @@ pub fn harmonic_extension(
     let (st, b) = Stencil::new(grid, free, &voxels, fixed);
     let b_norm = norm2(&b).map(f64::sqrt);
     let scale = b_norm.map(|n| if n > 0.0 { n } else { 1.0 });
-    // x₀ = D⁻¹ b (a Jacobi step), then rounds of r = b − A x (double), A e = r (single), x += e.
-    let mut x: Vec<[f64; 3]> =
-        b.iter().zip(&st.diag).map(|(b, d)| [b[0] / d, b[1] / d, b[2] / d]).collect();
+    // x₀ from the coarse grid (or D⁻¹ b, a Jacobi step, where it has nothing), then rounds
+    // of r = b − A x (double), A e = r (single), x += e.
+    let jacobi = |i: usize| {
+        let (b, d) = (b[i], st.diag[i]);
+        [b[0] / d, b[1] / d, b[2] / d]
+    };
+    let mut x: Vec<[f64; 3]> = coarse::guess(grid, free, &voxels, fixed, params, jacobi)
+        .unwrap_or_else(|| (0..st.len()).map(jacobi).collect());
     let mut r = vec![[0.0f32; 3]; st.len()];
     let (mut iterations, mut residual) = (0, f64::INFINITY);
     for round in 0..=MAX_ROUNDS {

@@ -37,6 +37,41 @@ fn a_slab_between_two_planes_gets_the_linear_stretch() {
 }
 
 #[test]
+fn a_slab_too_large_to_solve_directly_starts_from_its_coarse_solution() {
+    // The linear stretch of the first test on 38 × 40 × 40 free voxels (above the default
+    // `coarsen_from`): the coarse start changes where the iteration begins, not where it
+    // ends, and saves iterations (measured: 131 against 250 at this tolerance).
+    let grid = Grid::axis_aligned([40, 40, 40], [1.0, 0.8, 1.2], [0.0; 3]).unwrap();
+    let free: Vec<bool> = (0..grid.len()).map(|n| (1..=38).contains(&(n % 40))).collect();
+    let d0 = [3.0, -1.0, 0.5];
+    let fixed = |n: usize| if n.is_multiple_of(40) { d0 } else { [0.0; 3] };
+    let params = ExtensionParams { tolerance: 1e-9, ..ExtensionParams::default() };
+    assert!(38 * 40 * 40 >= params.coarsen_from);
+    let coarse = harmonic_extension(&grid, &free, &fixed, &params);
+    let direct = harmonic_extension(
+        &grid,
+        &free,
+        &fixed,
+        &ExtensionParams { coarsen_from: usize::MAX, ..params },
+    );
+    for ext in [&coarse, &direct] {
+        for (&v, d) in ext.voxels.iter().zip(&ext.values) {
+            let i = v as usize % 40;
+            for c in 0..3 {
+                let expect = d0[c] * (39 - i) as f64 / 39.0;
+                assert!((d[c] - expect).abs() < 1e-6, "voxel {v}: {d:?} against {expect}");
+            }
+        }
+    }
+    assert!(
+        4 * coarse.iterations <= 3 * direct.iterations,
+        "{} against {} iterations",
+        coarse.iterations,
+        direct.iterations
+    );
+}
+
+#[test]
 fn a_gap_narrower_than_the_move_folds_and_is_reported() {
     // d₀ = 10 mm over a 9-voxel gap of 1 mm voxels: ∂d/∂x = −10/9 < −1, J < 0.
     let grid = Grid::axis_aligned([10, 1, 1], [1.0; 3], [0.0; 3]).unwrap();
