@@ -5,12 +5,11 @@
 //! has to stay above 5 % of its value (so that it does not invert).
 
 use bs_mesh::Vector3;
-use nalgebra::Matrix3;
 use rayon::prelude::*;
 
 use super::elements::Elements;
 use crate::element::TetFormulation;
-use crate::element::step::{det_cubic, element_bound, first_crossing, gradient};
+use crate::element::step::{cubic_bound, element_bound, element_cubic, first_crossing};
 
 /// The result of `Model::step_bound`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -41,22 +40,40 @@ impl Elements {
         alpha_max: f64,
     ) -> StepBound {
         let anp = self.tet == TetFormulation::T4Anp;
-        let tet_fraction = if anp { ELEMENT_FLOOR } else { fraction };
-        let tets = self
-            .tets
-            .par_iter()
-            .zip(self.tet_elem.par_iter())
-            .with_min_len(1024)
-            .map(|(t, &e)| (element_bound(u, d, &t.nodes, &t.g, tet_fraction, alpha_max), e));
+        let none = || (alpha_max, u32::MAX);
+        // T4ANP: each tet's cubic once, for its own bound and the nodal sums.
+        let cubics: Option<Vec<[f64; 4]>> = anp.then(|| {
+            self.tets
+                .par_iter()
+                .with_min_len(1024)
+                .map(|t| element_cubic(u, d, &t.nodes, &t.g))
+                .collect()
+        });
+        let tets = match &cubics {
+            Some(c) => c
+                .par_iter()
+                .zip(self.tet_elem.par_iter())
+                .with_min_len(1024)
+                .map(|(c, &e)| (cubic_bound(*c, ELEMENT_FLOOR, alpha_max), e))
+                .reduce(none, min_pair),
+            None => self
+                .tets
+                .par_iter()
+                .zip(self.tet_elem.par_iter())
+                .with_min_len(1024)
+                .map(|(t, &e)| (element_bound(u, d, &t.nodes, &t.g, fraction, alpha_max), e))
+                .reduce(none, min_pair),
+        };
         let hexes = self
             .hexes
             .par_iter()
             .zip(self.hex_elem.par_iter())
             .with_min_len(256)
-            .map(|(h, &e)| (element_bound(u, d, &h.nodes, &h.g, fraction, alpha_max), e));
-        let (mut alpha, mut e) = tets.chain(hexes).reduce(|| (alpha_max, u32::MAX), min_pair);
-        if anp && !self.tets.is_empty() {
-            let (a, n) = self.nodal_bound(u, d, fraction, alpha);
+            .map(|(h, &e)| (element_bound(u, d, &h.nodes, &h.g, fraction, alpha_max), e))
+            .reduce(none, min_pair);
+        let (mut alpha, mut e) = min_pair(tets, hexes);
+        if let Some(cubics) = cubics.filter(|c| !c.is_empty()) {
+            let (a, n) = self.nodal_bound(&cubics, fraction, alpha);
             if a < alpha {
                 alpha = a;
                 e = self.tet_elem[self.first_tet_of(n)];
@@ -66,26 +83,12 @@ impl Elements {
     }
 
     /// The smallest bound over nodes of the nodal volume ratio `Σ V_e J_e / Σ V_e` (tets
-    /// around the node), and the node.
-    fn nodal_bound(
-        &self,
-        u: &[Vector3<f64>],
-        d: &[Vector3<f64>],
-        fraction: f64,
-        alpha_max: f64,
-    ) -> (f64, usize) {
-        let coefficients: Vec<[f64; 4]> = self
-            .tets
-            .par_iter()
-            .with_min_len(1024)
-            .map(|t| {
-                let f = Matrix3::identity() + gradient(u, &t.nodes, &t.g);
-                det_cubic(&f, &gradient(d, &t.nodes, &t.g)).map(|c| c * t.vol)
-            })
-            .collect();
+    /// around the node, whose cubics are `cubics`), and the node.
+    fn nodal_bound(&self, cubics: &[[f64; 4]], fraction: f64, alpha_max: f64) -> (f64, usize) {
         // Summed per node in tet order: the same sums for any thread count.
         let mut nodal = vec![[0.0f64; 4]; self.anp_inv_vol.len()];
-        for (t, c) in self.tets.iter().zip(&coefficients) {
+        for (t, c) in self.tets.iter().zip(cubics) {
+            let c = c.map(|c| c * t.vol);
             for &g in &t.anp {
                 for k in 0..4 {
                     nodal[g as usize][k] += c[k];

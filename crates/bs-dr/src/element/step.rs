@@ -43,6 +43,11 @@ pub(crate) fn det_cubic(f: &Matrix3<f64>, g: &Matrix3<f64>) -> [f64; 4] {
 /// coefficients `c` and `p(0) > level`; `alpha_max` when `p` stays above `level` there. The
 /// value returned satisfies `p(α) ≥ level` (to the rounding of one evaluation).
 pub fn first_crossing(c: [f64; 4], level: f64, alpha_max: f64) -> f64 {
+    if stays_above(c, level, alpha_max) { alpha_max } else { search(c, level, alpha_max) }
+}
+
+/// [`first_crossing`] by the turning points of the cubic and bisection.
+fn search(c: [f64; 4], level: f64, alpha_max: f64) -> f64 {
     let p = |a: f64| ((c[3] * a + c[2]) * a + c[1]) * a + c[0] - level;
     // Turning points: roots of p'(α) = c1 + 2 c2 α + 3 c3 α².
     let mut cuts = [alpha_max; 3];
@@ -83,6 +88,16 @@ pub fn first_crossing(c: [f64; 4], level: f64, alpha_max: f64) -> f64 {
     alpha_max
 }
 
+/// Whether `p(α) > level` on all of `[0, alpha_max]` by the bound
+/// `p(α) ≥ c0 − |c1| a − |c2| a² − |c3| a³` (`a = alpha_max`), with a margin far above the
+/// rounding of either evaluation: most elements of a Newton step pass it, and skip the
+/// search for turning points (which, for them, returns `alpha_max` too).
+fn stays_above(c: [f64; 4], level: f64, alpha_max: f64) -> bool {
+    let a = alpha_max;
+    let drop = ((c[3].abs() * a + c[2].abs()) * a + c[1].abs()) * a;
+    c[0] - level - drop > 1e-12 * (c[0].abs() + level.abs() + drop)
+}
+
 /// `Σ_a v_a ⊗ g_a` over an element's nodes.
 pub(crate) fn gradient<const N: usize>(
     v: &[Vector3<f64>],
@@ -101,6 +116,27 @@ pub(crate) fn gradient<const N: usize>(
     m
 }
 
+/// The coefficients of one element's `det(F + α G)` at the displacements `u` along `d`.
+pub(crate) fn element_cubic<const N: usize>(
+    u: &[Vector3<f64>],
+    d: &[Vector3<f64>],
+    nodes: &[u32; N],
+    g: &[[f64; 3]; N],
+) -> [f64; 4] {
+    let f = Matrix3::identity() + gradient(u, nodes, g);
+    det_cubic(&f, &gradient(d, nodes, g))
+}
+
+/// The bound of a volume ratio with the cubic `c`: `alpha_max` unless it would fall below
+/// `fraction` of its current value `c[0]` within it; 0 when it is not positive now.
+pub(crate) fn cubic_bound(c: [f64; 4], fraction: f64, alpha_max: f64) -> f64 {
+    if c[0].is_nan() || c[0] <= 0.0 {
+        // Already inverted (or not finite): no step keeps it valid.
+        return 0.0;
+    }
+    first_crossing(c, fraction * c[0], alpha_max)
+}
+
 /// The bound of one element: `alpha_max` unless its volume ratio would fall below
 /// `fraction` of its current value within it.
 pub(crate) fn element_bound<const N: usize>(
@@ -111,14 +147,7 @@ pub(crate) fn element_bound<const N: usize>(
     fraction: f64,
     alpha_max: f64,
 ) -> f64 {
-    let f = Matrix3::identity() + gradient(u, nodes, g);
-    let dg = gradient(d, nodes, g);
-    let c = det_cubic(&f, &dg);
-    if c[0].is_nan() || c[0] <= 0.0 {
-        // Already inverted (or not finite): no step keeps it valid.
-        return 0.0;
-    }
-    first_crossing(c, fraction * c[0], alpha_max)
+    cubic_bound(element_cubic(u, d, nodes, g), fraction, alpha_max)
 }
 
 #[cfg(test)]
@@ -161,6 +190,26 @@ mod tests {
         assert!((a - 0.2).abs() < 1e-12, "{a}");
         let p = |x: f64| ((c[3] * x + c[2]) * x + c[1]) * x + c[0];
         assert!(p(a) >= 0.0);
+    }
+
+    /// The quick bound answers only where the search gives `alpha_max` too: random cubics
+    /// around a volume ratio of one, steps from 1e-3 to 1, levels from 0.05 to 0.9.
+    #[test]
+    fn the_quick_bound_agrees_with_the_search() {
+        let mut rng = bs_mesh::rng::SplitMix64::new(11);
+        let mut quick = 0;
+        for k in 0..20_000 {
+            let mut r = || rng.range(-1.0, 1.0);
+            let scale = [0.1, 1.0, 10.0][k % 3];
+            let c = [1.0 + 0.5 * r(), scale * r(), scale * r(), scale * r()];
+            let level = c[0] * [0.05, 0.5, 0.9][(k / 9) % 3];
+            let alpha_max = [1e-3, 0.1, 1.0][(k / 3) % 3];
+            let (a, b) = (first_crossing(c, level, alpha_max), search(c, level, alpha_max));
+            assert_eq!(a.to_bits(), b.to_bits(), "{c:?} {level} {alpha_max}");
+            quick += usize::from(stays_above(c, level, alpha_max));
+        }
+        // Both branches are exercised.
+        assert!(quick > 2_000 && quick < 18_000, "{quick}");
     }
 
     /// Brute force: on random elements and directions, the bound keeps det F above the
