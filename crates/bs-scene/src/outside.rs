@@ -35,6 +35,7 @@
 use bs_image::Grid;
 use bs_image::extend::{ExtensionParams, Folding, harmonic_extension, indices_where, jacobian};
 use rayon::prelude::*;
+use std::sync::OnceLock;
 
 /// The narrowest band of a skull-free extension (mm).
 pub const MIN_BAND_MM: f64 = 10.0;
@@ -79,14 +80,54 @@ pub struct Outside {
     pub voxels: Vec<u32>,
     /// d(y) there (image frame, mm).
     pub values: Vec<[f64; 3]>,
-    /// What was done.
-    pub report: OutsideReport,
+    /// Per grid voxel: its place in `voxels` + 1, zero off the gap (only the pages that
+    /// hold gap voxels are ever written).
+    slot: Vec<u32>,
+    boundary: Boundary,
+    iterations: usize,
+    residual: f64,
+    /// det(I + ∇d) on the gap voxels and where it is smallest, measured on first ask.
+    folding: OnceLock<(Folding, Option<[f64; 3]>)>,
 }
 
 impl Outside {
     /// The extended d at voxel `n` if it is a gap voxel.
     pub fn get(&self, n: usize) -> Option<[f64; 3]> {
-        self.voxels.binary_search(&(n as u32)).ok().map(|s| self.values[s])
+        match self.slot.get(n).copied().unwrap_or(0) {
+            0 => None,
+            s => Some(self.values[s as usize - 1]),
+        }
+    }
+
+    /// What the extension did. Whether the map folds is measured on the first call, not
+    /// when the map is built (13 ms on the 8.7 M-voxel MNI152 grid): a live session's
+    /// server sends the warped image first and its report last. `inside(n)`: d at a voxel
+    /// inside the deformed brain (the exact inverse), `None` elsewhere.
+    pub fn report(
+        &self,
+        grid: &Grid,
+        inside: impl Fn(usize) -> Option<[f64; 3]> + Sync,
+    ) -> OutsideReport {
+        let (folding, worst_at) = *self.folding.get_or_init(|| {
+            let field = |n: usize| self.get(n).or_else(|| inside(n)).unwrap_or([0.0; 3]);
+            let folding = jacobian(grid, &self.voxels, &field);
+            let at = folding.worst.map(|v| {
+                let [nx, ny, _] = grid.dims();
+                let n = v as usize;
+                let p =
+                    grid.world([(n % nx) as f64, ((n / nx) % ny) as f64, (n / (nx * ny)) as f64]);
+                [p.x, p.y, p.z]
+            });
+            (folding, at)
+        });
+        OutsideReport {
+            boundary: self.boundary,
+            gap_voxels: self.voxels.len(),
+            iterations: self.iterations,
+            residual: self.residual,
+            folding,
+            worst_at,
+        }
     }
 }
 
@@ -143,31 +184,15 @@ pub fn extend(
     for (s, &v) in voxels.iter().enumerate() {
         slot[v as usize] = s as u32 + 1;
     }
-    let field = |n: usize| match slot[n] {
-        0 => {
-            if in_brain[n] {
-                exact(n)
-            } else {
-                [0.0; 3]
-            }
-        }
-        s => values[s as usize - 1],
-    };
-    let folding = jacobian(grid, &voxels, &field);
-    let report = OutsideReport {
+    Outside {
+        voxels,
+        values,
+        slot,
         boundary,
-        gap_voxels: voxels.len(),
         iterations: ext.iterations,
         residual: ext.residual,
-        folding,
-        worst_at: folding.worst.map(|v| {
-            let [nx, ny, _] = grid.dims();
-            let n = v as usize;
-            let p = grid.world([(n % nx) as f64, ((n / nx) % ny) as f64, (n / (nx * ny)) as f64]);
-            [p.x, p.y, p.z]
-        }),
-    };
-    Outside { voxels, values, report }
+        folding: OnceLock::new(),
+    }
 }
 
 /// The union of two lists of voxels with their values, each ascending and disjoint, as one

@@ -387,7 +387,7 @@ impl InverseMap {
 
     /// What the extension outside the deformed brain did (None: identity there).
     pub fn outside_report(&self) -> Option<OutsideReport> {
-        self.outside.as_ref().map(|o| o.report)
+        self.outside.as_ref().map(|o| o.report(&self.grid, |n| self.exact_displacement(n)))
     }
 
     /// Voxels mapped by the extension (between the deformed brain and the skull).
