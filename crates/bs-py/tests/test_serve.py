@@ -507,3 +507,15 @@ def test_frames_landmark_pairing_and_displacement_rows():
         displacements_of_csv("h\n9,0,0,0\n", ids, h)
     with pytest.raises(igtl.MessageError, match="line 2: expected node_id,ux,uy,uz"):
         displacements_of_csv("h\n9,0,0,nan\n", ids, h)
+
+
+def test_the_server_keeps_large_buffers_in_the_heap_on_glibc():
+    # `brainshift serve` sets glibc's mmap and trim thresholds so that the image-sized
+    # arrays of each update reuse freed memory instead of being mapped and zero-filled anew.
+    import platform
+
+    from brainshift import serve
+
+    if not sys.platform.startswith("linux") or platform.libc_ver()[0] != "glibc":
+        pytest.skip("glibc only")
+    assert serve.keep_large_buffers()
