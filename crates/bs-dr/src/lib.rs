@@ -102,7 +102,6 @@ pub use element::{Solid, TetFormulation};
 #[doc(hidden)]
 pub use kernels::simd::has_avx2_fma;
 pub use linalg::twolevel::TwoLevelParams;
-pub use linalg::twolevel::setup::CONTACT_COARSE_MAX_COLUMNS;
 pub use loads::{LoadError, Loads, ramp};
 pub use model::{Model, ModelError, ModelOptions};
 pub use newton::{Newton, NewtonError, NewtonInfo, NewtonParams};

@@ -27,9 +27,8 @@ pub struct SolveSettings {
     /// Newton–Krylov's largest linear-solve relative residual (its default when `None`).
     pub forcing_max: Option<f64>,
     /// Newton–Krylov keeps `K₀` to rebuild the preconditioner's coarse matrix for the contact
-    /// set of each load level (`bs_dr::TwoLevelParams::contact_coarse`; kept for coarse
-    /// problems of at most `bs_dr::CONTACT_COARSE_MAX_COLUMNS` columns). Default true: on
-    /// the MNI152 demo at 8 mm 50 instead of 81 GMRES iterations, at 25 mm 127 instead of 194.
+    /// set of each load level (`bs_dr::TwoLevelParams::contact_coarse`): set by a live
+    /// `Session`, whose updates start with nodes held on the skull.
     pub contact_coarse: bool,
 }
 
@@ -43,7 +42,7 @@ impl SolveSettings {
             max_steps: p.scene.solver.max_steps,
             ramp_steps: p.scene.solver.ramp_steps,
             forcing_max: None,
-            contact_coarse: true,
+            contact_coarse: false,
         }
     }
 }

@@ -11,11 +11,9 @@ pub struct TwoLevelParams {
     /// Lower end of the smoothed interval as a fraction of `λ_max(D⁻¹K₀)`. Default 0.1.
     pub lower: f64,
     /// Keep `K₀`, the prolongator and `K₀ P` after the setup, so that a solve can rebuild
-    /// the coarse matrix for its contact constraints (`TwoLevel::constrain_coarse`), when
-    /// the coarse problem has at most `CONTACT_COARSE_MAX_COLUMNS` columns. It costs the
-    /// memory of those matrices (about 4 kB per node) and saves GMRES iterations wherever
-    /// contact holds nodes (the MNI152 demo at 8 mm: 81 → 50). Default false; brainshift's
-    /// scenes turn it on.
+    /// the coarse matrix for its contact constraints (`TwoLevel::constrain_coarse`). For live
+    /// sessions, whose updates start with nodes already held on the skull; it costs the
+    /// memory of those matrices (about 80 MB on the MNI152 demo). Default false.
     pub contact_coarse: bool,
 }
 

@@ -53,13 +53,6 @@ const STALE_FRACTION: f64 = 1.0;
 /// and 18 builds against 177 and 19 with a minimum of 8).
 const STALE_MIN: usize = 50;
 
-/// The largest coarse problem for which [`TwoLevel::constrain_coarse`] is kept: its numeric
-/// factorisation costs 6–19 ms at 1126 columns (the MNI152 demo) and grows about as the
-/// square of the columns. On the 852k-tet brain (10 401 columns) it took the solve from 19.9
-/// to 26.2 s (GMRES 149 → 109) and the peak from 3.6 to 5.9 GB; on the 31 k-node MNI152
-/// mesh (2295 columns) from 1.82 to 1.52 s (GMRES 88 → 58), peak 485 → 607 MB.
-pub const CONTACT_COARSE_MAX_COLUMNS: usize = 4000;
-
 /// `K₀`, the prolongator, `K₀ P` (double precision) and the assembled `Pᵀ K₀ P`, kept
 /// after the setup.
 #[derive(Debug)]
