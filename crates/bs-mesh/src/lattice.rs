@@ -177,22 +177,25 @@ impl LatticeLocation {
                 let t = t as usize;
                 let (inv, q0) = (&inverse[t], &first[t]);
                 let r = &ranges[t];
+                // Along a row the coordinates are affine in i, l(i) = l(i₀) + (i − i₀) inv·eₓ:
+                // three multiply-adds per point instead of a 3 × 3 product.
+                let step = inv.column(0).into_owned();
                 for j in r[1].0..=r[1].1 {
                     let row = &mut slice[j * nx..(j + 1) * nx];
-                    for (i, cell) in row.iter_mut().enumerate().take(r[0].1 + 1).skip(r[0].0) {
-                        if *cell != OUTSIDE {
-                            continue;
-                        }
-                        let d = nalgebra::Vector3::new(i as f64 - q0.x, j as f64 - q0.y, z - q0.z);
-                        let l = inv * d;
+                    let i0 = r[0].0;
+                    let start =
+                        inv * nalgebra::Vector3::new(i0 as f64 - q0.x, j as f64 - q0.y, z - q0.z);
+                    for (i, cell) in row.iter_mut().enumerate().take(r[0].1 + 1).skip(i0) {
+                        let l = start + step * (i - i0) as f64;
                         let w0 = 1.0 - l.x - l.y - l.z;
-                        if w0 >= -INSIDE_TOLERANCE
-                            && l.x >= -INSIDE_TOLERANCE
-                            && l.y >= -INSIDE_TOLERANCE
-                            && l.z >= -INSIDE_TOLERANCE
-                        {
-                            *cell = t as u32;
-                        }
+                        // Without branches (`&`, a select): whether a point is inside is a
+                        // coin toss the branch predictor loses about half the time.
+                        let take = (*cell == OUTSIDE)
+                            & (w0 >= -INSIDE_TOLERANCE)
+                            & (l.x >= -INSIDE_TOLERANCE)
+                            & (l.y >= -INSIDE_TOLERANCE)
+                            & (l.z >= -INSIDE_TOLERANCE);
+                        *cell = if take { t as u32 } else { *cell };
                     }
                 }
             }
