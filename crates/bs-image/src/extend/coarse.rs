@@ -20,7 +20,7 @@
 
 use rayon::prelude::*;
 
-use super::{ExtensionParams, harmonic_extension};
+use super::{Extended, ExtensionParams, harmonic_extension};
 use crate::Grid;
 
 /// The coarse grid's index of fine index `i` along one axis.
@@ -70,12 +70,26 @@ pub(super) fn guess(
     drop(count);
     let fixed_c = |c: usize| children(c).find(|&n| !free[n]).map_or([0.0; 3], fixed);
     let solved = harmonic_extension(&coarse, &free_c, &fixed_c, params);
+    Some(prolong(grid.dims(), cd, &solved, voxels, fallback))
+}
+
+/// The coarse solution `solved` (on the grid of dimensions `cd`) interpolated trilinearly
+/// at the centres of the fine `voxels` (grid dimensions `dims`), over the free coarse
+/// voxels among the eight nearest (weights renormalised); `fallback(i)` where there is none.
+fn prolong(
+    dims: [usize; 3],
+    cd: [usize; 3],
+    solved: &Extended,
+    voxels: &[u32],
+    fallback: impl Fn(usize) -> [f64; 3] + Sync,
+) -> Vec<[f64; 3]> {
+    let [nx, ny, _] = dims;
     // Coarse free voxel → its place in the solution + 1.
-    let mut slot = vec![0u32; coarse.len()];
+    let mut slot = vec![0u32; cd[0] * cd[1] * cd[2]];
     for (s, &c) in solved.voxels.iter().enumerate() {
         slot[c as usize] = s as u32 + 1;
     }
-    let out = voxels
+    voxels
         .par_iter()
         .enumerate()
         .map(|(s, &v)| {
@@ -93,8 +107,7 @@ pub(super) fn guess(
             for o in 0..8usize {
                 let b = [o & 1, o >> 1 & 1, o >> 2];
                 let idx = [0, 1, 2].map(|a| (lo[a] + b[a]).min(cd[a] - 1));
-                let c = idx[0] + cd[0] * (idx[1] + cd[1] * idx[2]);
-                let sc = slot[c];
+                let sc = slot[idx[0] + cd[0] * (idx[1] + cd[1] * idx[2])];
                 if sc == 0 {
                     continue;
                 }
@@ -107,6 +120,44 @@ pub(super) fn guess(
             }
             if wsum > 1e-12 { acc.map(|x| x / wsum) } else { fallback(s) }
         })
-        .collect();
-    Some(out)
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_linear_coarse_field_is_interpolated_exactly_and_a_lone_voxel_falls_back() {
+        // Coarse voxel centres sit at fine coordinate 2 I + ½; a field linear in the coarse
+        // indices, d = (I, 2 J, −K), read at fine voxel (i, j, k) is ((i − ½)/2, (j − ½),
+        // −(k − ½)/2) wherever all eight coarse neighbours are free (inside the grid).
+        let (dims, cd) = ([8, 8, 8], [4, 4, 4]);
+        let all: Vec<u32> = (0..64).collect();
+        let values: Vec<[f64; 3]> = all
+            .iter()
+            .map(|&c| {
+                let c = c as usize;
+                [(c % 4) as f64, 2.0 * ((c / 4) % 4) as f64, -((c / 16) as f64)]
+            })
+            .collect();
+        let solved = Extended { voxels: all, values, iterations: 0, residual: 0.0 };
+        let fine: Vec<u32> = (0..512).collect();
+        let got = prolong(dims, cd, &solved, &fine, |_| [f64::NAN; 3]);
+        for (&v, d) in fine.iter().zip(&got) {
+            let n = v as usize;
+            let ijk = [n % 8, (n / 8) % 8, n / 64];
+            if ijk.iter().all(|&x| (1..=6).contains(&x)) {
+                let x = ijk.map(|x| (x as f64 - 0.5) / 2.0);
+                let want = [x[0], 2.0 * x[1], -x[2]];
+                for q in 0..3 {
+                    assert!((d[q] - want[q]).abs() < 1e-12, "{ijk:?}: {d:?} against {want:?}");
+                }
+            }
+        }
+        // No free coarse voxel near a fine one: the fallback.
+        let empty = Extended { voxels: vec![], values: vec![], iterations: 0, residual: 0.0 };
+        let got = prolong(dims, cd, &empty, &[9], |s| [s as f64 + 7.0; 3]);
+        assert_eq!(got, vec![[7.0; 3]]);
+    }
 }
