@@ -3,6 +3,7 @@
 //! the solver used.
 
 use bs_contact::ParryContact;
+use rayon::prelude::*;
 
 use crate::SceneError;
 use crate::compose::Composed;
@@ -39,8 +40,10 @@ pub fn exact_gaps(
     exact: &ParryContact,
     points: impl Iterator<Item = bs_mesh::Point3<f64>>,
 ) -> Vec<bs_contact::GapRow> {
+    let points: Vec<bs_mesh::Point3<f64>> = points.collect();
     points
-        .map(|q| match exact.project_exact(&q) {
+        .par_iter()
+        .map(|&q| match exact.project_exact(&q) {
             Some(pr) => bs_contact::GapRow {
                 signed_distance: pr.signed_distance,
                 closest: pr.point,

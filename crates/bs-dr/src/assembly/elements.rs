@@ -2,6 +2,8 @@
 //! its mesh element index), their blocks of four for the SIMD kernels, the solids, the
 //! node → slot map and the T4ANP nodal volumes. Built once by `Model::new`.
 
+use rayon::prelude::*;
+
 use crate::element::{ElementView, Hex, Solid, Tet, TetFormulation};
 use crate::kernels::layout::{HexBlock, TetBlock, hex_blocks, tet_blocks};
 
@@ -147,6 +149,23 @@ impl Elements {
     pub(crate) fn iter(&self) -> impl Iterator<Item = (usize, ElementView<'_>)> + '_ {
         let tets = self.tets.iter().zip(&self.tet_elem).map(|(t, &e)| (e as usize, t.view()));
         let hexes = self.hexes.iter().zip(&self.hex_elem).map(|(h, &e)| (e as usize, h.view()));
+        tets.chain(hexes)
+    }
+
+    /// [`iter`](Self::iter) in parallel, in the same order when collected.
+    pub(crate) fn par_iter(
+        &self,
+    ) -> impl IndexedParallelIterator<Item = (usize, ElementView<'_>)> + '_ {
+        let tets = self
+            .tets
+            .par_iter()
+            .zip(self.tet_elem.par_iter())
+            .map(|(t, &e)| (e as usize, t.view()));
+        let hexes = self
+            .hexes
+            .par_iter()
+            .zip(self.hex_elem.par_iter())
+            .map(|(h, &e)| (e as usize, h.view()));
         tets.chain(hexes)
     }
 
