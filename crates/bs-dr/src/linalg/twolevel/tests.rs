@@ -63,12 +63,7 @@ fn iterations(m: &Model, two_level: bool) -> (usize, f64) {
         m.reference().iter().map(|x| Vector3::new(0.1 * x.z, 0.0, -0.05 * x.x)).collect();
     fixed.apply(&mut b);
     let k = m.linear_stiffness();
-    let mut ks = k.scratch();
     let mut ts = tl.scratch();
-    let mut op = |x: &[Vector3<f64>], y: &mut [Vector3<f64>]| {
-        k.mul(x, y, &mut ks);
-        fixed.apply(y);
-    };
     let diag: Vec<Matrix3<f64>> =
         (0..n).map(|a| projected_inverse(&k.diagonal(a), &fixed.matrix[a])).collect();
     let mut prec = |r: &[Vector3<f64>], z: &mut [Vector3<f64>]| {
@@ -80,10 +75,29 @@ fn iterations(m: &Model, two_level: bool) -> (usize, f64) {
             }
         }
     };
-    let mut x = vec![Vector3::zeros(); n];
-    let info = Gmres::new(n, 60).solve(&mut op, &mut prec, &b, &mut x, 1e-8, 3000);
-    assert!(info.converged, "{info:?}");
+    let info = projected_gmres(m, &fixed, &b, &mut prec);
     (info.iterations, info.relative_residual)
+}
+
+/// GMRES (restart 60, to 1e-8) on `Π K₀ Π x = b` with the preconditioner `prec`; asserts
+/// that it converged.
+fn projected_gmres(
+    m: &Model,
+    pi: &Projector,
+    b: &[Vector3<f64>],
+    prec: &mut crate::linalg::krylov::NodalMap<'_>,
+) -> crate::linalg::krylov::GmresInfo {
+    let n = m.node_count();
+    let k = m.linear_stiffness();
+    let mut ks = k.scratch();
+    let mut op = |x: &[Vector3<f64>], y: &mut [Vector3<f64>]| {
+        k.mul(x, y, &mut ks);
+        pi.apply(y);
+    };
+    let mut x = vec![Vector3::zeros(); n];
+    let info = Gmres::new(n, 60).solve(&mut op, prec, b, &mut x, 1e-8, 3000);
+    assert!(info.converged, "{info:?}");
+    info
 }
 
 #[test]
@@ -139,23 +153,13 @@ fn the_cycle_is_symmetric_and_positive() {
 /// GMRES iterations (to 1e-8) of `Π K₀ Π x = Π b` with the two-level preconditioner `tl`
 /// under the constraints `con`.
 fn constrained_iterations(m: &Model, tl: &TwoLevel, con: &super::Constraints) -> usize {
-    let n = m.node_count();
     let pi = &con.projector;
     let mut b: Vec<Vector3<f64>> =
         m.reference().iter().map(|x| Vector3::new(0.1 * x.z, 0.05 * x.y, -0.05 * x.x)).collect();
     pi.apply(&mut b);
-    let k = m.linear_stiffness();
-    let mut ks = k.scratch();
     let mut ts = tl.scratch();
-    let mut op = |x: &[Vector3<f64>], y: &mut [Vector3<f64>]| {
-        k.mul(x, y, &mut ks);
-        pi.apply(y);
-    };
     let mut prec = |r: &[Vector3<f64>], z: &mut [Vector3<f64>]| tl.apply(con, r, z, &mut ts);
-    let mut x = vec![Vector3::zeros(); n];
-    let info = Gmres::new(n, 60).solve(&mut op, &mut prec, &b, &mut x, 1e-8, 3000);
-    assert!(info.converged, "{info:?}");
-    info.iterations
+    projected_gmres(m, pi, &b, &mut prec).iterations
 }
 
 /// `A⁻¹ c` with a coarse factor.
