@@ -14,7 +14,8 @@ pub struct SkullContact {
     /// Exact closest points at any distance (parry's BVH and the exact point–triangle
     /// projection), for the Newton–Krylov solver's queries beyond the handler's reach.
     pub(crate) exact: Arc<ParryContact>,
-    /// Wall time spent enforcing contact so far.
+    /// Wall time spent in contact since the start of the current solve (reset by each
+    /// solve, so that a live session's update reports its own).
     pub elapsed: std::time::Duration,
 }
 

@@ -112,6 +112,10 @@ pub fn solve_composed_from(
         observer(pr);
     };
     prepare_solver(c, s)?;
+    // The contact time of this solve only (a live session keeps its handler across updates).
+    if let Some(sc) = &mut c.contact {
+        sc.elapsed = std::time::Duration::ZERO;
+    }
     let mut none = bs_dr::NoContact;
     let contact: &mut dyn bs_dr::Contact = match &mut c.contact {
         Some(sc) => sc,
