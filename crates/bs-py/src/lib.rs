@@ -83,7 +83,8 @@ fn with_threads<T: Send>(
 }
 
 /// The solver observer of a Python `progress` callable: a dict per step or iteration (step,
-/// load_factor, error_estimate, max_displacement, nodes_in_contact), the GIL taken for
+/// load_factor, error_estimate, max_displacement, nodes_in_contact, and the linear iterations
+/// and force evaluations so far), the GIL taken for
 /// each call; the first exception the callable raises is kept in `error` (and later calls
 /// skipped) to be raised when the solve ends.
 fn observer<'a>(
@@ -103,6 +104,8 @@ fn observer<'a>(
                 d.set_item("error_estimate", p.err)?;
                 d.set_item("max_displacement", p.max_displacement)?;
                 d.set_item("nodes_in_contact", p.contact.nodes_in_contact)?;
+                d.set_item("linear_iterations", p.linear_iterations)?;
+                d.set_item("force_evaluations", p.force_evaluations)?;
                 cb.call1(py, (d,))?;
                 Ok(())
             };

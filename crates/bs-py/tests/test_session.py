@@ -39,6 +39,9 @@ def test_session_matches_the_cli_cold_bit_for_bit_and_warm_to_the_tolerance(fixt
     steps = []
     warm = session.update(displacements={"ZMAX": [0.0, 0.0, -0.2]}, progress=steps.append)
     assert len(steps) == warm.report["steps"] and steps[-1]["load_factor"] == 1.0
+    # The counts so far, per iteration: the last ones are the report's.
+    assert steps[-1]["linear_iterations"] == warm.report["linear_iterations"]
+    assert steps[-1]["force_evaluations"] <= warm.report["force_evaluations"]
     assert np.abs(warm.displacements - u_cli).max() < 1e-8
     assert warm.report["converged"] and warm.report["max_displacement"] > 0.2
 
