@@ -214,6 +214,21 @@ impl Model {
                 }
             }
         }
+        // The assembly runs the tets in Morton order of their centroids (memory locality);
+        // each keeps its mesh element index.
+        let centroids: Vec<Point3<f64>> = tets
+            .iter()
+            .map(|t| {
+                let c = t
+                    .nodes
+                    .iter()
+                    .fold(Vector3::zeros(), |c, &n| c + mesh.nodes[n as usize].coords);
+                Point3::from(c / 4.0)
+            })
+            .collect();
+        let order = crate::assembly::order::morton_order(&centroids);
+        let tets: Vec<Tet> = order.iter().map(|&i| tets[i as usize].clone()).collect();
+        let tet_elem: Vec<u32> = order.iter().map(|&i| tet_elem[i as usize]).collect();
         let list = ElementList {
             solids: solids.to_vec(),
             tet: options.tet,
