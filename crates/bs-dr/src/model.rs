@@ -227,7 +227,7 @@ impl Model {
             })
             .collect();
         let order = crate::assembly::order::morton_order(&centroids);
-        let tets: Vec<Tet> = order.iter().map(|&i| tets[i as usize].clone()).collect();
+        let tets: Vec<Tet> = order.iter().map(|&i| tets[i as usize]).collect();
         let tet_elem: Vec<u32> = order.iter().map(|&i| tet_elem[i as usize]).collect();
         let list = ElementList {
             solids: solids.to_vec(),
