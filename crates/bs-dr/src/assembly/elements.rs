@@ -7,6 +7,7 @@ use rayon::prelude::*;
 use crate::element::{ElementView, Hex, Solid, Tet, TetFormulation};
 use crate::kernels::layout::{HexBlock, TetBlock, hex_blocks, tet_blocks};
 
+use super::runs::RunMap;
 use super::slots::SlotMap;
 
 /// The elements of a model, ready for assembly.
@@ -39,6 +40,9 @@ pub(crate) struct Elements {
     pub tet_blocks: Vec<TetBlock>,
     /// `hexes` in blocks of four for the SIMD kernel (derived, padded at the end).
     pub hex_blocks: Vec<HexBlock>,
+    /// Where the tet blocks' forces are summed, for a mesh of tetrahedra only (`None`: the
+    /// slots).
+    pub runs: Option<RunMap>,
 }
 
 /// What [`Elements::new`] is built from.
@@ -79,6 +83,7 @@ impl Elements {
         let anp_inv_vol = anp_vol.iter().map(|&v| if v > 0.0 { 1.0 / v } else { 0.0 }).collect();
         let tet_blocks = tet_blocks(&tets, &solids);
         let hex_blocks = hex_blocks(&hexes, &solids);
+        let runs = (hexes.is_empty() && !tets.is_empty()).then(|| RunMap::new(&tet_blocks, nodes));
         Elements {
             solids,
             tet,
@@ -93,6 +98,7 @@ impl Elements {
             anp_ptr,
             tet_blocks,
             hex_blocks,
+            runs,
         }
     }
 
@@ -125,6 +131,7 @@ impl Elements {
             anp_ptr: self.anp_ptr.clone(),
             tet_blocks: Vec::new(),
             hex_blocks: Vec::new(),
+            runs: None,
         }
     }
 

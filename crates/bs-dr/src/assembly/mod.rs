@@ -4,6 +4,7 @@
 //! * [`elements`]: the model's elements in assembly order (tets, then hexes), their blocks
 //!   and the loops over both;
 //! * [`order`]: the tetrahedra's assembly order (a Morton curve through their centroids);
+//! * [`runs`]: tet forces summed per run of blocks where they are computed (tet meshes);
 //! * [`slots`]: the node → force-slot map (every node sums its slots in a fixed order);
 //! * [`forces`]: internal forces through the SIMD kernels, [`gather`]ed per node, with
 //!   caller-owned [`workspace`]s; [`inversion`]: which element inverted;
@@ -19,6 +20,7 @@ pub(crate) mod forces;
 pub(crate) mod gather;
 pub(crate) mod inversion;
 pub(crate) mod order;
+pub(crate) mod runs;
 pub(crate) mod scalar;
 pub(crate) mod slots;
 pub(crate) mod step_bound;

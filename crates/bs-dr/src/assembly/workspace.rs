@@ -16,6 +16,8 @@ pub struct Workspace {
     /// Tet force slots, per block of four tets, tet-major: slot `4t + a` at `3(4t + a)` of
     /// the flattened buffer (see [`BlockForces`]).
     pub(super) tslots: Vec<BlockForces>,
+    /// Per run of tet blocks, its nodes' forces (see `runs`; empty without runs).
+    pub(super) tacc: Vec<[f64; 4]>,
     /// Hex force slots, per block of four hexes, hex-major: hex slot `8h + a` at
     /// `3(8h + a)` of the flattened buffer (see [`HexBlockForces`]).
     pub(super) hslots: Vec<HexBlockForces>,
@@ -35,8 +37,10 @@ impl Elements {
         let nb = self.tet_blocks.len();
         Workspace {
             upad: vec![[0.0; 4]; self.nodes()],
-            // One spare block and slot: the gather reads every slot as four values.
-            tslots: vec![[[0.0; LANES]; 12]; nb + 1],
+            // One spare block and slot: the gather reads every slot as four values. None
+            // when the runs sum the tet forces.
+            tslots: vec![[[0.0; LANES]; 12]; if self.runs.is_some() { 0 } else { nb + 1 }],
+            tacc: vec![[0.0; 4]; self.runs.as_ref().map_or(0, |r| r.len())],
             hslots: vec![[[0.0; LANES]; 24]; self.hex_blocks.len() + 1],
             tjac: vec![[0.0; LANES]; nb],
             tvj: vec![[0.0; LANES]; nb],
