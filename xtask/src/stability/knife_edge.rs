@@ -96,6 +96,11 @@ fn signature(m: &Measured) -> (String, usize) {
     (Verdict::text(&classify(&m.result, 1e-3)), m.metrics().steps)
 }
 
+/// The smallest and largest Newton iteration count of a cell's runs.
+fn count_range(ways: &[(String, usize)]) -> (usize, usize) {
+    ways.iter().fold((usize::MAX, 0), |(lo, hi), w| (lo.min(w.1), hi.max(w.1)))
+}
+
 fn dir(name: &str) -> PathBuf {
     std::env::temp_dir().join(format!("brainshift-knife-edge-{}-{name}", std::process::id()))
 }
@@ -178,7 +183,7 @@ fn newton_krylov_cells_are_not_on_a_knife_edge() {
         assert_eq!((&s.row, &s.value), (&p.row, &p.value));
         let ways = [signature(&s.measure()), signature(&perturbed(s)), signature(&p.measure())];
         let same_verdict = ways.iter().all(|w| w.0 == ways[0].0);
-        let (lo, hi) = ways.iter().fold((usize::MAX, 0), |(lo, hi), w| (lo.min(w.1), hi.max(w.1)));
+        let (lo, hi) = count_range(&ways);
         let close = !count_checked(s) || hi as f64 <= COUNT_RATIO * lo.max(1) as f64;
         let ok = same_verdict && close;
         differ += usize::from(!ok);
@@ -233,7 +238,7 @@ fn the_40_mm_ellipsoid_is_not_on_a_knife_edge() {
         signature(&measure(&v, &permuted)),
     ];
     println!("as built, perturbed, permuted: {ways:?}");
-    let (lo, hi) = ways.iter().fold((usize::MAX, 0), |(lo, hi), w| (lo.min(w.1), hi.max(w.1)));
+    let (lo, hi) = count_range(&ways);
     assert!(
         ways.iter().all(|w| w.0 == "converged") && hi as f64 <= COUNT_RATIO * lo as f64,
         "as built, perturbed, permuted: {ways:?}"
