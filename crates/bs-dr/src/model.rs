@@ -11,6 +11,7 @@ use crate::assembly::stiffness::linear_stiffness;
 use crate::assembly::{Inversion, ReferenceWorkspace, StepBound, Workspace};
 use crate::element::{Hex, Solid, Tet, TetFormulation};
 use crate::linalg::nodal::NodalMatrix;
+use crate::linalg::sparse::RankOneSum;
 
 /// Element technology options. Hexahedra always use the H8 mean-strain (uniform strain)
 /// formulation of Flanagan & Belytschko (1981) with stiffness hourglass control.
@@ -325,6 +326,13 @@ impl Model {
     /// element inverted at `x`.
     pub(crate) fn linear_stiffness_at(&self, x: &[Point3<f64>]) -> Option<NodalMatrix> {
         crate::assembly::stiffness::linear_stiffness_at(&self.elements, x)
+    }
+
+    /// The T4ANP nodal volumetric term of `K₀` on the configuration `x`, written into `c`,
+    /// and the 99th percentile of `|J − 1|` (see
+    /// [`crate::assembly::stiffness::volumetric_at`]).
+    pub(crate) fn volumetric_at(&self, x: &[Point3<f64>], c: &mut RankOneSum) -> Option<f64> {
+        crate::assembly::stiffness::volumetric_at(&self.elements, x, c)
     }
 
     /// Scratch buffers sized for this model.

@@ -52,6 +52,21 @@ impl Gmres {
         }
     }
 
+    /// Iterations per restart cycle.
+    pub fn restart(&self) -> usize {
+        self.restart
+    }
+
+    /// Length (nodal vectors) of the vectors it solves for.
+    pub fn len(&self) -> usize {
+        self.w.len()
+    }
+
+    /// Whether it solves for empty vectors.
+    pub fn is_empty(&self) -> bool {
+        self.w.is_empty()
+    }
+
     /// Solves `A x = b` from `x = 0` to `‖b − A x‖ ≤ rtol ‖b‖` or `max_iterations`, with `op`
     /// computing `A v` and `prec` computing `M⁻¹ v` (right preconditioning: `A M⁻¹ y = b`,
     /// `x = M⁻¹ y`).

@@ -15,6 +15,9 @@ pub struct NodalMatrix {
     pub assembled: BlockCsr,
     /// The rank-one nodal terms, if any.
     pub nodal: Option<RankOneSum>,
+    /// Per nodal term, how much stiffer it is than the assembled part around it (T4ANP:
+    /// the volume averages `κ̄/μ̄` at the node); empty without nodal terms.
+    pub ratio: Vec<f64>,
 }
 
 /// Scratch of [`NodalMatrix::mul`]: one value per rank-one term.

@@ -63,6 +63,7 @@ impl Iterate {
                 rhs: zeros,
                 gmres: Gmres::new(n, pb.params.restart),
                 tl: pb.tl().scratch(),
+                mixed: None,
             },
             phi: f64::INFINITY,
             max_penetration: 0.0,

@@ -3,7 +3,8 @@
 //! difference of the internal forces (so every element technology is linearised exactly as
 //! its force kernel); `u_p` is the particular displacement (prescribed values still to apply
 //! and the normal moves that put held contact nodes on their features); `Π` removes fixed
-//! and held directions.
+//! and held directions. Nearly incompressible T4ANP models are solved in the mixed form of
+//! [`super::mixed`] where it pays.
 
 use std::time::{Duration, Instant};
 
@@ -11,6 +12,7 @@ use bs_mesh::Vector3;
 use rayon::prelude::*;
 
 use super::Work;
+use super::mixed::{MixedBuffers, Tolerance};
 use crate::assembly::{Inversion, Workspace};
 use crate::linalg::krylov::{Gmres, GmresInfo};
 use crate::linalg::sparse::max_abs;
@@ -40,6 +42,8 @@ pub(crate) struct LinearBuffers {
     pub rhs: Vec<Vector3<f64>>,
     pub gmres: Gmres,
     pub tl: TwoLevelScratch,
+    /// The mixed form's buffers, made at the first solve with a split preconditioner.
+    pub mixed: Option<MixedBuffers>,
 }
 
 /// The linearisation point and what is held there.
@@ -117,7 +121,19 @@ pub(crate) fn solve(
         tl.apply(cons, r, z, scratch);
         prec_time += t.elapsed();
     };
-    let info = b.gmres.solve(&mut op, &mut prec, &b.rhs, delta, rtol, max_iterations);
+    let mixed_form = tl.split().and_then(|split| {
+        let mixed = MixedBuffers::at(&mut b.mixed, split, model, u, b.gmres.restart())?;
+        Some((split, mixed))
+    });
+    let info = match mixed_form {
+        None => b.gmres.solve(&mut op, &mut prec, &b.rhs, delta, rtol, max_iterations),
+        Some((split, mixed)) => {
+            let tol = Tolerance { rtol, max_iterations };
+            let info = mixed.solve(split, cons, &b.rhs, &mut op, tol, &mut prec_time);
+            delta.copy_from_slice(&mixed.x[..delta.len()]);
+            info
+        }
+    };
     work.linear += info.iterations;
     work.time.preconditioner += prec_time;
     pi.apply(delta);

@@ -68,6 +68,7 @@ mod line_search;
 mod linear;
 mod loading;
 mod merit;
+mod mixed;
 mod outcome;
 mod params;
 mod problem;

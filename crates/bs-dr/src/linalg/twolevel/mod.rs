@@ -24,7 +24,7 @@
 //! [`constraints`] (a solve's constraints as the cycle sees them), [`rows`]
 //! (nodal sparse rows and their products), [`operator`] (`K₀` fused in single precision for
 //! the smoother), [`coarse`] (aggregates, Galerkin factor), [`correction`] (the Galerkin
-//! factor of a contact set as a correction of the setup's), [`setup`] (building the preconditioner), [`cycle`] (applying it).
+//! factor of a contact set as a correction of the setup's), [`setup`] (building the preconditioner), [`cycle`] (applying it), [`split`] (the mixed form of nearly incompressible T4ANP).
 
 pub mod coarse;
 pub mod constraints;
@@ -35,12 +35,14 @@ pub mod params;
 pub mod projector;
 pub mod rows;
 pub mod setup;
+pub mod split;
 
 pub use constraints::Constraints;
 pub use cycle::TwoLevelScratch;
 pub use params::{TwoLevelError, TwoLevelParams};
 pub use projector::Projector;
 pub use setup::TwoLevel;
+pub use split::{Moved, SplitScratch, VolumetricSplit};
 
 #[cfg(test)]
 mod tests;

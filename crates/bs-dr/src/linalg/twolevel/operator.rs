@@ -268,6 +268,7 @@ mod tests {
                 t_val: r.t_val.iter().map(|v| v.abs()).collect(),
                 ..r.clone()
             }),
+            ratio: k.ratio.clone(),
         };
         absk.mul(&absx, &mut abs, &mut absk.scratch());
         for a in 0..n {

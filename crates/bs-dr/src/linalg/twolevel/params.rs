@@ -15,11 +15,21 @@ pub struct TwoLevelParams {
     /// sessions, whose updates start with nodes already held on the skull; it costs the
     /// memory of those matrices (about 80 MB on the MNI152 demo). Default false.
     pub contact_coarse: bool,
+    /// Solve in the mixed form of [`super::split`] when a T4ANP nodal volumetric term is
+    /// stiffer than this many times the shear stiffness around it (`κ̄/μ̄`; ν = 0.49 gives
+    /// 50, 0.499 gives 500). Default 100; infinity never splits.
+    pub split_above: f64,
 }
 
 impl Default for TwoLevelParams {
     fn default() -> Self {
-        TwoLevelParams { aggregate_size: 4.2, degree: 3, lower: 0.1, contact_coarse: false }
+        TwoLevelParams {
+            aggregate_size: 4.2,
+            degree: 3,
+            lower: 0.1,
+            contact_coarse: false,
+            split_above: 100.0,
+        }
     }
 }
 

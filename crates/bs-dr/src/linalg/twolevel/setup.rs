@@ -16,6 +16,7 @@ use super::operator::Operator32;
 use super::params::{TwoLevelError, TwoLevelParams};
 use super::projector::{Projector, projected_inverse};
 use super::rows::{NodeRows, NodeRows32, product, tentative_columns, transpose};
+use super::split::{VolumetricSplit, split};
 use crate::linalg::nodal::{NodalMatrix, NodalScratch};
 use crate::linalg::sparse::max_abs;
 
@@ -38,6 +39,9 @@ pub struct TwoLevel {
     /// What [`constrain_coarse`](Self::constrain_coarse) needs, when
     /// [`TwoLevelParams::contact_coarse`] asked to keep it.
     pub(super) retained: Option<Retained>,
+    /// The nearly incompressible split, when `K₀` asked for it ([`super::split`]), with the
+    /// preconditioner of its block.
+    pub(super) split: Option<VolumetricSplit>,
 }
 
 /// [`TwoLevel::constrain_coarse`] builds a coarse matrix for the first constraints that hold
@@ -76,6 +80,15 @@ impl TwoLevel {
         params: TwoLevelParams,
     ) -> Result<Self, TwoLevelError> {
         let n = x.len();
+        let split = match split(&k, params.split_above) {
+            Some(parts) => {
+                let block_params =
+                    TwoLevelParams { split_above: f64::INFINITY, contact_coarse: false, ..params };
+                let block = TwoLevel::new(parts.block.clone(), x, mean_edge, fixed, block_params)?;
+                Some(parts.with(block))
+            }
+            None => None,
+        };
         let diag: Vec<Matrix3<f64>> = (0..n).into_par_iter().map(|a| k.diagonal(a)).collect();
         let inv_diag: Vec<Matrix3<f64>> =
             (0..n).into_par_iter().map(|a| projected_inverse(&diag[a], &fixed.matrix[a])).collect();
@@ -107,7 +120,38 @@ impl TwoLevel {
         let (p32, pt32) = (p.to_f32(), pt.to_f32());
         let coarse = g.factor;
         let retained = params.contact_coarse.then_some(Retained { k, p, kp, galerkin: g.matrix });
-        Ok(TwoLevel { diag, op32, params, fixed, lambda_max, p: p32, pt: pt32, coarse, retained })
+        Ok(TwoLevel {
+            diag,
+            op32,
+            params,
+            fixed,
+            lambda_max,
+            p: p32,
+            pt: pt32,
+            coarse,
+            retained,
+            split,
+        })
+    }
+
+    /// The nearly incompressible split the solves must use with this preconditioner, if any.
+    pub fn split(&self) -> Option<&VolumetricSplit> {
+        self.split.as_ref()
+    }
+
+    /// Constraints of this preconditioner with the projector of `con` (another
+    /// preconditioner's constraints on the same nodes), its setup's coarse factor.
+    pub fn constraints_like(&self, con: &Constraints) -> Constraints {
+        let inv_diag = (0..self.diag.len())
+            .into_par_iter()
+            .map(|a| projected_inverse(&self.diag[a], &con.projector.matrix[a]))
+            .collect();
+        Constraints {
+            projector: con.projector.clone(),
+            inv_diag,
+            coarse: None,
+            coarse_for: Vec::new(),
+        }
     }
 
     /// The 3×3 diagonal block of node `a` of the linearised stiffness the preconditioner

@@ -1,0 +1,212 @@
+//! The nearly incompressible split: `K₀ = E + Cᵀ W C` (T4ANP: the deviatoric element part and
+//! the nodal volumetric term, [`NodalMatrix`]) solved in the mixed form
+//!
+//! ```text
+//! [ E + Cᵀ αW C    Cᵀ ] [u]   [r]
+//! [ (1−α)W C      −I  ] [p] = [0]
+//! ```
+//!
+//! whose first row, with `p = (1−α) W C u`, is `K₀ u = r` exactly, for any `α` per term and
+//! any operator in place of `K₀` (the solver's tangent `J`: the first block is then
+//! `J − Cᵀ (1−α)W C`, with `C` and `W` taken on the current configuration). A second
+//! two-level preconditioner is built for the block `E + Cᵀ αW C`, which keeps the share
+//! [`BLOCK_SHARE`] of the volumetric stiffness of every term stiffer than
+//! [`TwoLevelParams::split_above`](super::TwoLevelParams::split_above) times its shear; the
+//! rest is the multiplier `p` (an augmented Lagrangian: Fortin & Glowinski 1983; Benzi &
+//! Olshanskii, *SIAM J. Sci. Comput.* 28, 2006). The preconditioner is block upper
+//! triangular, `p = −r_p / s`, `u = B (r_u − Π Cᵀ p)`, with the Schur complement
+//! `I + (1−α)W C B Cᵀ` approximated per term by `s = 1 + (1−α)/α` (the block inverts `αW` on
+//! the range of `Cᵀ`). The second row is scaled by `(1−α)W` so that the mixed residual bounds
+//! the reduced one: `K₀ u − r = ρ_u + Cᵀ ρ_p`.
+//!
+//! Measured on the jittered 8³ and 12³ T4ANP blocks of this module's tests (GMRES to 1e-8 of
+//! the reduced residual, the block's `κ/μ` at 50): ν = 0.499 133 → 54, ν = 0.4999 496–561 →
+//! 72–80 iterations. The block leaves the pressures' geometric stiffness (`κ (J − 1)` times
+//! the second derivatives of `J`) out; where the configuration is far from isochoric it
+//! exceeds the block's and the mixed form stalls ([`VolumetricSplit::pays`]).
+
+use bs_mesh::Vector3;
+use rayon::prelude::*;
+
+use super::projector::Projector;
+use super::setup::TwoLevel;
+use crate::linalg::krylov::NodalMap;
+use crate::linalg::nodal::NodalMatrix;
+use crate::linalg::sparse::RankOneSum;
+
+/// The share `α` of a split term's volumetric stiffness kept in the two-level block (the rest
+/// goes to the multiplier). Measured with `brainshift run` on the MNI152 brain (8 mm): at
+/// ν = 0.499 `α` = 0.1 (a block `κ/μ` of 50) took 25 Newton / 290 GMRES iterations and 0.4
+/// (200) 17 / 288, against 30 / 1013 without the split; at ν = 0.4999, 0.1 (500)
+/// converged in 224 / 5815 (273 iterations without), 0.04 and 0.01 did not in 300. On the
+/// tests' blocks (linear, ν = 0.4999) a block `κ/μ` of 10, 20, 50 took 128–169, 91–114,
+/// 72–85 iterations.
+pub const BLOCK_SHARE: f64 = 0.1;
+
+/// The split, kept by the preconditioner when a nodal term is stiffer than
+/// [`TwoLevelParams::split_above`](super::TwoLevelParams::split_above) times its shear.
+#[derive(Debug)]
+pub struct VolumetricSplit {
+    /// `C` and `W` of the reference configuration.
+    c: RankOneSum,
+    /// `α` per term.
+    alpha: Vec<f64>,
+    /// `1 / s` per term: the inverse of the approximate Schur complement.
+    inv_schur: Vec<f64>,
+    /// The two-level preconditioner of the block `E + Cᵀ αW C`.
+    pub block: Box<TwoLevel>,
+}
+
+/// The split of `K₀` (its two-level block `E + Cᵀ αW C` and the multiplier's share), before
+/// the block's preconditioner is built.
+pub(super) struct Parts {
+    pub block: NodalMatrix,
+    c: RankOneSum,
+    alpha: Vec<f64>,
+    inv_schur: Vec<f64>,
+}
+
+impl Parts {
+    /// The split with the block's preconditioner.
+    pub(super) fn with(self, block: TwoLevel) -> VolumetricSplit {
+        let Parts { c, alpha, inv_schur, .. } = self;
+        VolumetricSplit { c, alpha, inv_schur, block: Box::new(block) }
+    }
+}
+
+/// Caller-owned buffers of [`VolumetricSplit::apply`] and
+/// [`VolumetricSplit::precondition`].
+#[derive(Debug, Default)]
+pub struct SplitScratch {
+    s: Vec<f64>,
+    t: Vec<f64>,
+    v: Vec<Vector3<f64>>,
+}
+
+/// Splits `k` when its stiffest nodal term exceeds `above` times its shear (`None`
+/// otherwise).
+pub(super) fn split(k: &NodalMatrix, above: f64) -> Option<Parts> {
+    let mut k = k.clone();
+    let nodal = k.nodal.as_mut()?;
+    if !k.ratio.iter().any(|&r| r > above) {
+        return None;
+    }
+    let c = nodal.clone();
+    let mut inv_schur = vec![1.0; nodal.terms()];
+    let mut alphas = vec![1.0; nodal.terms()];
+    for (t, &ratio) in k.ratio.iter().enumerate() {
+        let alpha = if ratio > above { BLOCK_SHARE } else { 1.0 };
+        nodal.weight[t] *= alpha;
+        inv_schur[t] = 1.0 / (1.0 + (1.0 - alpha) / alpha);
+        alphas[t] = alpha;
+    }
+    Some(Parts { block: k, c, alpha: alphas, inv_schur })
+}
+
+impl VolumetricSplit {
+    /// Length in nodal vectors of a mixed vector on `n` nodes: the multipliers packed three
+    /// to a vector after the displacements.
+    pub fn len(&self, n: usize) -> usize {
+        n + self.c.terms().div_ceil(3)
+    }
+
+    /// The split on the configuration whose nodal volumetric term is `nodal` (the pattern of
+    /// [`term`](Self::term)): its weights are scaled to the multiplier's share `1 − α`.
+    pub fn moved<'a>(&'a self, nodal: &'a mut RankOneSum) -> Moved<'a> {
+        nodal.weight.iter_mut().zip(&self.alpha).for_each(|(w, a)| *w *= 1.0 - a);
+        Moved { c: nodal, split: self }
+    }
+
+    /// A copy of the nodal volumetric term `K₀` was built with (pattern and reference
+    /// values), for [`moved`](Self::moved).
+    pub fn term(&self) -> RankOneSum {
+        self.c.clone()
+    }
+
+    /// Whether the mixed form pays on a configuration whose tetrahedra change their volume
+    /// by `dj` (99th percentile of `|J − 1|`): the pressures' geometric stiffness, about
+    /// `κ dj`, must stay below the block's volumetric stiffness `α κ`
+    /// ([`DISTORTION`]`= 0.6 α`).
+    pub fn pays(&self, dj: f64) -> bool {
+        dj <= DISTORTION
+    }
+}
+
+/// See [`VolumetricSplit::pays`]. Measured on the MNI152 brain at ν = 0.499, `α` = 0.1: the
+/// mixed GMRES met its forcing (0.5) in 7–25 iterations up to a 99th percentile of `|J − 1|`
+/// of 0.066 and stalled at 0.54–0.89 after 200 iterations from 0.080 on; the other solves
+/// use the preconditioner of the whole `K₀`.
+pub const DISTORTION: f64 = 0.6 * BLOCK_SHARE;
+
+/// A split with the multiplier's term on another configuration.
+#[derive(Debug)]
+pub struct Moved<'a> {
+    c: &'a RankOneSum,
+    split: &'a VolumetricSplit,
+}
+
+impl Moved<'_> {
+    /// `out = A v` for the mixed operator, `ju` computing `Π J u` (the operator of the
+    /// displacements); `s` holds one value per term.
+    pub fn apply(
+        &self,
+        pi: &Projector,
+        n: usize,
+        v: &[Vector3<f64>],
+        out: &mut [Vector3<f64>],
+        scratch: &mut SplitScratch,
+        ju: &mut NodalMap<'_>,
+    ) {
+        let (vu, vp) = v.split_at(n);
+        let (ou, op) = out.split_at_mut(n);
+        ju(vu, ou);
+        let terms = self.c.terms();
+        let SplitScratch { s: wcu, t: diff, v: extra } = scratch;
+        wcu.resize(terms, 0.0);
+        diff.resize(terms, 0.0);
+        extra.resize(n, Vector3::zeros());
+        // (1−α)W C u, then Cᵀ (p − (1−α)W C u) onto the first row.
+        self.c.project_into(vu, wcu);
+        diff.par_iter_mut().zip(wcu.par_iter()).enumerate().for_each(|(t, (d, w))| {
+            *d = vp[t / 3][t % 3] - w;
+        });
+        extra.par_iter_mut().for_each(|x| *x = Vector3::zeros());
+        self.c.add_expand(diff, extra);
+        pi.apply(extra);
+        ou.par_iter_mut().zip(extra.par_iter()).for_each(|(o, e)| *o += e);
+        op.iter_mut().for_each(|o| *o = Vector3::zeros());
+        for (t, w) in wcu.iter().enumerate() {
+            op[t / 3][t % 3] = w - vp[t / 3][t % 3];
+        }
+    }
+
+    /// `z = M⁻¹ r`: `p = −r_p / s`, `z_u = B (r_u − Π Cᵀ p)` with `b` applying the two-level
+    /// cycle.
+    pub fn precondition(
+        &self,
+        pi: &Projector,
+        n: usize,
+        r: &[Vector3<f64>],
+        z: &mut [Vector3<f64>],
+        scratch: &mut SplitScratch,
+        b: &mut NodalMap<'_>,
+    ) {
+        let terms = self.c.terms();
+        let SplitScratch { s, v: scratch, .. } = scratch;
+        s.resize(terms, 0.0);
+        for (t, st) in s.iter_mut().enumerate() {
+            *st = -r[n + t / 3][t % 3] * self.split.inv_schur[t];
+        }
+        scratch.resize(n, Vector3::zeros());
+        scratch.iter_mut().for_each(|x| *x = Vector3::zeros());
+        self.c.add_expand(s, scratch);
+        pi.apply(scratch);
+        scratch.par_iter_mut().zip(r[..n].par_iter()).for_each(|(x, ri)| *x = ri - *x);
+        let (zu, zp) = z.split_at_mut(n);
+        b(scratch, zu);
+        zp.iter_mut().for_each(|o| *o = Vector3::zeros());
+        for (t, st) in s.iter().enumerate() {
+            zp[t / 3][t % 3] = *st;
+        }
+    }
+}
