@@ -9,8 +9,13 @@ use bs_mesh::{Point3, Vector3};
 
 use crate::linalg::krylov::{Gmres, GmresInfo, NodalMap};
 use crate::linalg::sparse::RankOneSum;
-use crate::linalg::twolevel::{Constraints, SplitScratch, TwoLevelScratch, VolumetricSplit};
+use crate::linalg::twolevel::{
+    Constraints, SplitScratch, TwoLevel, TwoLevelScratch, VolumetricSplit,
+};
 use crate::model::Model;
+
+/// A split and the preconditioner of its block ([`TwoLevel::split`]).
+pub(crate) type Split<'a> = (&'a VolumetricSplit, &'a TwoLevel);
 
 /// Stopping rule of a linear solve.
 #[derive(Debug, Clone, Copy)]
@@ -35,7 +40,7 @@ pub(crate) struct MixedBuffers {
 }
 
 impl MixedBuffers {
-    fn new(split: &VolumetricSplit, n: usize, restart: usize) -> Self {
+    fn new((split, block): Split<'_>, n: usize, restart: usize) -> Self {
         let len = split.len(n);
         MixedBuffers {
             gmres: Gmres::new(len, restart),
@@ -43,7 +48,7 @@ impl MixedBuffers {
             x: vec![Vector3::zeros(); len],
             apply: SplitScratch::default(),
             precondition: SplitScratch::default(),
-            tl: split.block.scratch(),
+            tl: block.scratch(),
             term: split.term(),
             positions: Vec::new(),
         }
@@ -53,27 +58,27 @@ impl MixedBuffers {
     /// to `X + u`, when the mixed form pays there ([`VolumetricSplit::pays`]).
     pub(crate) fn at<'a>(
         slot: &'a mut Option<MixedBuffers>,
-        split: &VolumetricSplit,
+        split: Split<'_>,
         model: &Model,
         u: &[Vector3<f64>],
         restart: usize,
     ) -> Option<&'a mut MixedBuffers> {
         let n = u.len();
-        if slot.as_ref().is_none_or(|m| m.gmres.len() != split.len(n)) {
+        if slot.as_ref().is_none_or(|m| m.gmres.len() != split.0.len(n)) {
             *slot = Some(MixedBuffers::new(split, n, restart));
         }
         let mixed = slot.as_mut()?;
         mixed.positions.clear();
         mixed.positions.extend(model.reference().iter().zip(u).map(|(p, d)| p + d));
         let dj = model.volumetric_at(&mixed.positions, &mut mixed.term)?;
-        split.pays(dj).then_some(mixed)
+        split.0.pays(dj).then_some(mixed)
     }
 
     /// Solves the mixed form of `J δ = rhs` (`op` applying `Π J`) into [`x`](Self::x);
     /// the block's preconditioner time is added to `prec_time`.
     pub(crate) fn solve(
         &mut self,
-        split: &VolumetricSplit,
+        (split, block): Split<'_>,
         cons: &Constraints,
         rhs: &[Vector3<f64>],
         op: &mut NodalMap<'_>,
@@ -85,7 +90,6 @@ impl MixedBuffers {
         self.rhs[..n].copy_from_slice(rhs);
         self.rhs[n..].iter_mut().for_each(|v| *v = Vector3::zeros());
         let moved = split.moved(&mut self.term);
-        let block = &split.block;
         let block_cons = block.constraints_like(cons);
         let (tl, apply, precondition) = (&mut self.tl, &mut self.apply, &mut self.precondition);
         let mut block_prec = |r: &[Vector3<f64>], z: &mut [Vector3<f64>]| {

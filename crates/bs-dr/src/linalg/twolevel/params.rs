@@ -15,7 +15,7 @@ pub struct TwoLevelParams {
     /// sessions, whose updates start with nodes already held on the skull; it costs the
     /// memory of those matrices (about 80 MB on the MNI152 demo). Default false.
     pub contact_coarse: bool,
-    /// Solve in the mixed form of [`super::split`] when a T4ANP nodal volumetric term is
+    /// Solve in the mixed form of `split` when a T4ANP nodal volumetric term is
     /// stiffer than this many times the shear stiffness around it (`κ̄/μ̄`; ν = 0.49 gives
     /// 50, 0.499 gives 500). Default 100; infinity never splits.
     pub split_above: f64,

@@ -41,7 +41,7 @@ pub struct TwoLevel {
     pub(super) retained: Option<Retained>,
     /// The nearly incompressible split, when `K₀` asked for it ([`super::split`]), with the
     /// preconditioner of its block.
-    pub(super) split: Option<VolumetricSplit>,
+    pub(super) split: Option<Box<(VolumetricSplit, TwoLevel)>>,
 }
 
 /// [`TwoLevel::constrain_coarse`] builds a coarse matrix for the first constraints that hold
@@ -81,11 +81,11 @@ impl TwoLevel {
     ) -> Result<Self, TwoLevelError> {
         let n = x.len();
         let split = match split(&k, params.split_above) {
-            Some(parts) => {
+            Some((block, split)) => {
                 let block_params =
                     TwoLevelParams { split_above: f64::INFINITY, contact_coarse: false, ..params };
-                let block = TwoLevel::new(parts.block.clone(), x, mean_edge, fixed, block_params)?;
-                Some(parts.with(block))
+                let block = TwoLevel::new(block, x, mean_edge, fixed, block_params)?;
+                Some(Box::new((split, block)))
             }
             None => None,
         };
@@ -134,9 +134,10 @@ impl TwoLevel {
         })
     }
 
-    /// The nearly incompressible split the solves must use with this preconditioner, if any.
-    pub fn split(&self) -> Option<&VolumetricSplit> {
-        self.split.as_ref()
+    /// The nearly incompressible split the solves may use with this preconditioner, if
+    /// any, and the preconditioner of its block.
+    pub fn split(&self) -> Option<(&VolumetricSplit, &TwoLevel)> {
+        self.split.as_deref().map(|(s, b)| (s, b))
     }
 
     /// Constraints of this preconditioner with the projector of `con` (another

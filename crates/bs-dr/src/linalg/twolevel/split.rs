@@ -11,7 +11,7 @@
 //! `J − Cᵀ (1−α)W C`, with `C` and `W` taken on the current configuration). A second
 //! two-level preconditioner is built for the block `E + Cᵀ αW C`, which keeps the share
 //! [`BLOCK_SHARE`] of the volumetric stiffness of every term stiffer than
-//! [`TwoLevelParams::split_above`](super::TwoLevelParams::split_above) times its shear; the
+//! `TwoLevelParams::split_above` times its shear; the
 //! rest is the multiplier `p` (an augmented Lagrangian: Fortin & Glowinski 1983; Benzi &
 //! Olshanskii, *SIAM J. Sci. Comput.* 28, 2006). The preconditioner is block upper
 //! triangular, `p = −r_p / s`, `u = B (r_u − Π Cᵀ p)`, with the Schur complement
@@ -29,7 +29,6 @@ use bs_mesh::Vector3;
 use rayon::prelude::*;
 
 use super::projector::Projector;
-use super::setup::TwoLevel;
 use crate::linalg::krylov::NodalMap;
 use crate::linalg::nodal::NodalMatrix;
 use crate::linalg::sparse::RankOneSum;
@@ -44,7 +43,7 @@ use crate::linalg::sparse::RankOneSum;
 pub const BLOCK_SHARE: f64 = 0.1;
 
 /// The split, kept by the preconditioner when a nodal term is stiffer than
-/// [`TwoLevelParams::split_above`](super::TwoLevelParams::split_above) times its shear.
+/// `TwoLevelParams::split_above` times its shear.
 #[derive(Debug)]
 pub struct VolumetricSplit {
     /// `C` and `W` of the reference configuration.
@@ -53,25 +52,6 @@ pub struct VolumetricSplit {
     alpha: Vec<f64>,
     /// `1 / s` per term: the inverse of the approximate Schur complement.
     inv_schur: Vec<f64>,
-    /// The two-level preconditioner of the block `E + Cᵀ αW C`.
-    pub block: Box<TwoLevel>,
-}
-
-/// The split of `K₀` (its two-level block `E + Cᵀ αW C` and the multiplier's share), before
-/// the block's preconditioner is built.
-pub(super) struct Parts {
-    pub block: NodalMatrix,
-    c: RankOneSum,
-    alpha: Vec<f64>,
-    inv_schur: Vec<f64>,
-}
-
-impl Parts {
-    /// The split with the block's preconditioner.
-    pub(super) fn with(self, block: TwoLevel) -> VolumetricSplit {
-        let Parts { c, alpha, inv_schur, .. } = self;
-        VolumetricSplit { c, alpha, inv_schur, block: Box::new(block) }
-    }
 }
 
 /// Caller-owned buffers of [`VolumetricSplit::apply`] and
@@ -83,9 +63,9 @@ pub struct SplitScratch {
     v: Vec<Vector3<f64>>,
 }
 
-/// Splits `k` when its stiffest nodal term exceeds `above` times its shear (`None`
-/// otherwise).
-pub(super) fn split(k: &NodalMatrix, above: f64) -> Option<Parts> {
+/// Splits `k` when one of its nodal terms is stiffer than `above` times its shear (`None`
+/// otherwise): the block `E + Cᵀ αW C` and the split.
+pub(super) fn split(k: &NodalMatrix, above: f64) -> Option<(NodalMatrix, VolumetricSplit)> {
     let mut k = k.clone();
     let nodal = k.nodal.as_mut()?;
     if !k.ratio.iter().any(|&r| r > above) {
@@ -100,7 +80,7 @@ pub(super) fn split(k: &NodalMatrix, above: f64) -> Option<Parts> {
         inv_schur[t] = 1.0 / (1.0 + (1.0 - alpha) / alpha);
         alphas[t] = alpha;
     }
-    Some(Parts { block: k, c, alpha: alphas, inv_schur })
+    Some((k, VolumetricSplit { c, alpha: alphas, inv_schur }))
 }
 
 impl VolumetricSplit {

@@ -241,7 +241,7 @@ fn the_coarse_matrix_of_contact_constraints_is_their_galerkin_matrix_and_saves_i
 /// GMRES iterations (to 1e-8) of `Π K₀ Π u = b` in the mixed form of the split of `tl`, and
 /// the relative residual of the displacements it returns in `Π K₀ Π u = b` itself.
 fn mixed_iterations(m: &Model, tl: &TwoLevel, fixed: &Projector) -> (usize, f64) {
-    let split = tl.split().expect("a split preconditioner");
+    let (split, block_tl) = tl.split().expect("a split preconditioner");
     let n = m.node_count();
     let mut b: Vec<Vector3<f64>> =
         m.reference().iter().map(|x| Vector3::new(0.1 * x.z, 0.0, -0.05 * x.x)).collect();
@@ -254,10 +254,10 @@ fn mixed_iterations(m: &Model, tl: &TwoLevel, fixed: &Projector) -> (usize, f64)
     };
     let mut term = split.term();
     let moved = split.moved(&mut term);
-    let block_cons = split.block.constraints_like(&tl.constraints());
-    let mut bs = split.block.scratch();
+    let block_cons = block_tl.constraints_like(&tl.constraints());
+    let mut bs = block_tl.scratch();
     let mut block = |r: &[Vector3<f64>], z: &mut [Vector3<f64>]| {
-        split.block.apply(&block_cons, r, z, &mut bs);
+        block_tl.apply(&block_cons, r, z, &mut bs);
     };
     let (mut s1, mut s2) = (super::SplitScratch::default(), super::SplitScratch::default());
     let mut mop = |v: &[Vector3<f64>], out: &mut [Vector3<f64>]| {
