@@ -329,10 +329,15 @@ impl Model {
     }
 
     /// The T4ANP nodal volumetric term of `K₀` on the configuration `x`, written into `c`,
-    /// and the 99th percentile of `|J − 1|` (see
+    /// and the 99th percentile of `|J − 1|` over materials with `κ/μ > above` (see
     /// [`crate::assembly::stiffness::volumetric_at`]).
-    pub(crate) fn volumetric_at(&self, x: &[Point3<f64>], c: &mut RankOneSum) -> Option<f64> {
-        crate::assembly::stiffness::volumetric_at(&self.elements, x, c)
+    pub(crate) fn volumetric_at(
+        &self,
+        x: &[Point3<f64>],
+        c: &mut RankOneSum,
+        above: f64,
+    ) -> Option<f64> {
+        crate::assembly::stiffness::volumetric_at(&self.elements, x, c, above)
     }
 
     /// Scratch buffers sized for this model.

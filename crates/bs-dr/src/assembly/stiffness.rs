@@ -79,21 +79,31 @@ pub(crate) fn linear_stiffness_at(elements: &Elements, x: &[Point3<f64>]) -> Opt
 
 /// The T4ANP nodal volumetric term of [`linear_stiffness_at`] alone, written into `c` (a
 /// term built by [`linear_stiffness`] of the same elements: the pattern is kept, the weights
-/// and values are those at `x`); returns the 99th percentile of the tetrahedra's `|J − 1|`
-/// (`None`, `c` untouched, without T4ANP tetrahedra, with hexahedra, or with a tetrahedron
-/// inverted or flat at `x`).
+/// and values are those at `x`); returns the 99th percentile of `|J − 1|` over the
+/// tetrahedra whose material's `κ/μ` exceeds `above` (0 without any; `None`, `c` untouched,
+/// without T4ANP tetrahedra, with hexahedra, or with a tetrahedron inverted or flat at `x`).
 pub(crate) fn volumetric_at(
     elements: &Elements,
     x: &[Point3<f64>],
     c: &mut RankOneSum,
+    above: f64,
 ) -> Option<f64> {
     if !elements.anp() || !elements.hexes.is_empty() {
         return None;
     }
     let tets = moved_tets(elements, x)?;
+    let stiff: Vec<bool> = elements
+        .solids
+        .iter()
+        .map(|s| {
+            let el = s.material.elastic();
+            el.kappa > above * el.mu
+        })
+        .collect();
     let mut dj: Vec<f64> = tets
         .par_iter()
         .zip(elements.tets.par_iter())
+        .filter(|(_, b)| stiff[b.mat as usize])
         .map(|(a, b)| (a.vol / b.vol - 1.0).abs())
         .collect();
     let k = dj.len() / 100;
@@ -319,7 +329,8 @@ mod tests {
             .map(|p| p + Vector3::new(0.1 * p.x * p.y, 0.05 * (3.0 * p.z).sin(), -0.08 * p.x))
             .collect();
         let mut c = model.linear_stiffness().nodal.unwrap();
-        let dj = model.volumetric_at(&x, &mut c).unwrap();
+        let dj = model.volumetric_at(&x, &mut c, 100.0).unwrap();
+        assert_eq!(model.volumetric_at(&x, &mut c, 1e9), Some(0.0));
         let fresh = model.linear_stiffness_at(&x).unwrap().nodal.unwrap();
         assert_eq!((&c.c_col, &c.t_col), (&fresh.c_col, &fresh.t_col));
         let close = |a: &[Vector3<f64>], b: &[Vector3<f64>]| {

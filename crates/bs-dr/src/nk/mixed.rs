@@ -70,7 +70,7 @@ impl MixedBuffers {
         let mixed = slot.as_mut()?;
         mixed.positions.clear();
         mixed.positions.extend(model.reference().iter().zip(u).map(|(p, d)| p + d));
-        let dj = model.volumetric_at(&mixed.positions, &mut mixed.term)?;
+        let dj = model.volumetric_at(&mixed.positions, &mut mixed.term, split.0.above())?;
         split.0.pays(dj).then_some(mixed)
     }
 

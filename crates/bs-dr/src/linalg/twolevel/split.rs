@@ -11,19 +11,21 @@
 //! `J − Cᵀ (1−α)W C`, with `C` and `W` taken on the current configuration). A second
 //! two-level preconditioner is built for the block `E + Cᵀ αW C`, which keeps the share
 //! [`BLOCK_SHARE`] of the volumetric stiffness of every term stiffer than
-//! `TwoLevelParams::split_above` times its shear; the
-//! rest is the multiplier `p` (an augmented Lagrangian: Fortin & Glowinski 1983; Benzi &
-//! Olshanskii, *SIAM J. Sci. Comput.* 28, 2006). The preconditioner is block upper
+//! `TwoLevelParams::split_above` times its shear; the rest is the multiplier `p` (an
+//! augmented Lagrangian: Fortin & Glowinski 1983; Benzi & Olshanskii, *SIAM J. Sci.
+//! Comput.* 28, 2006). The preconditioner is block upper
 //! triangular, `p = −r_p / s`, `u = B (r_u − Π Cᵀ p)`, with the Schur complement
-//! `I + (1−α)W C B Cᵀ` approximated per term by `s = 1 + (1−α)/α` (the block inverts `αW` on
-//! the range of `Cᵀ`). The second row is scaled by `(1−α)W` so that the mixed residual bounds
-//! the reduced one: `K₀ u − r = ρ_u + Cᵀ ρ_p`.
+//! `I + (1−α)W C B Cᵀ` approximated per term by `s = 1 + β (1−α)/α` ([`SCHUR_SCALE`]). The
+//! second row is scaled by `(1−α)W` so that the mixed residual bounds the reduced one:
+//! `K₀ u − r = ρ_u + Cᵀ ρ_p`.
 //!
-//! Measured on the jittered 8³ and 12³ T4ANP blocks of this module's tests (GMRES to 1e-8 of
-//! the reduced residual, the block's `κ/μ` at 50): ν = 0.499 133 → 54, ν = 0.4999 496–561 →
-//! 72–80 iterations. The block leaves the pressures' geometric stiffness (`κ (J − 1)` times
-//! the second derivatives of `J`) out; where the configuration is far from isochoric it
-//! exceeds the block's and the mixed form stalls ([`VolumetricSplit::pays`]).
+//! Measured on the jittered 8³ T4ANP block of this module's tests (GMRES to 1e-8 of the
+//! reduced residual): ν = 0.499 133 → 89, ν = 0.4999 496 → 414 iterations (56 and 298 with
+//! the Schur scalar unscaled, which the nonlinear solves like less: [`SCHUR_SCALE`]); on
+//! the MNI152 brain at ν = 0.499, 1013 → 162–204 GMRES iterations in a whole solve. The
+//! block leaves the pressures' geometric stiffness (`κ (J − 1)` times the second derivatives
+//! of `J`) out; where the configuration is far from isochoric it exceeds the block's and the
+//! mixed form stalls ([`VolumetricSplit::pays`]).
 
 use bs_mesh::Vector3;
 use rayon::prelude::*;
@@ -39,7 +41,7 @@ use crate::linalg::sparse::RankOneSum;
 /// (200) 17 / 288, against 30 / 1013 without the split; at ν = 0.4999, 0.1 (500)
 /// converged in 224 / 5815 (273 iterations without), 0.04 and 0.01 did not in 300. On the
 /// tests' blocks (linear, ν = 0.4999) a block `κ/μ` of 10, 20, 50 took 128–169, 91–114,
-/// 72–85 iterations.
+/// 72–85 iterations. (Measured with the Schur scalar unscaled, before [`SCHUR_SCALE`].)
 pub const BLOCK_SHARE: f64 = 0.1;
 
 /// The split, kept by the preconditioner when a nodal term is stiffer than
@@ -52,7 +54,23 @@ pub struct VolumetricSplit {
     alpha: Vec<f64>,
     /// `1 / s` per term: the inverse of the approximate Schur complement.
     inv_schur: Vec<f64>,
+    /// The `κ̄/μ̄` above which a term was split.
+    above: f64,
 }
+
+/// The Schur complement `I + (1−α)W C B Cᵀ` is at most `1 + (1−α)/α` per term (the block's
+/// shear stiffness takes part of the volumetric response); the preconditioner uses
+/// `1 + SCHUR_SCALE (1−α)/α`. Measured with `brainshift run` at ν = 0.499 (Newton / GMRES
+/// iterations, the MNI152 brain with E as is and perturbed three ways in the 10th–13th
+/// digit): 1.0 22–25 / 240–288; 0.5 18–22 / 196–238; 0.4 17–19 / 175–195; 0.3 14–17 /
+/// 161–173; 0.25 16 in all four / 162–204; 0.2 22–23; 0.1 20–22. With the brain, tumour
+/// and ventricles of `fixtures/mni152-regions` as T4ANP at ν = 0.499: 1.0 24 / 299, 0.3
+/// 26 / 309, 0.25 16 / 176 (without the split 29 / 526). At ν = 0.4999 (MNI152): 1.0 225 /
+/// 5834, 0.3 164 / 5172, 0.25 178 / 6058. A linear solve to 1e-8 prefers 1.0 (the 8³
+/// block at ν = 0.499: 56 iterations against 89): the Newton solves end early (forcing
+/// 0.01–0.5), where a smaller `s` puts more of each correction into the multiplier and the
+/// truncated direction is closer to isochoric.
+pub const SCHUR_SCALE: f64 = 0.25;
 
 /// Caller-owned buffers of [`VolumetricSplit::apply`] and
 /// [`VolumetricSplit::precondition`].
@@ -77,10 +95,10 @@ pub(super) fn split(k: &NodalMatrix, above: f64) -> Option<(NodalMatrix, Volumet
     for (t, &ratio) in k.ratio.iter().enumerate() {
         let alpha = if ratio > above { BLOCK_SHARE } else { 1.0 };
         nodal.weight[t] *= alpha;
-        inv_schur[t] = 1.0 / (1.0 + (1.0 - alpha) / alpha);
+        inv_schur[t] = 1.0 / (1.0 + SCHUR_SCALE * (1.0 - alpha) / alpha);
         alphas[t] = alpha;
     }
-    Some((k, VolumetricSplit { c, alpha: alphas, inv_schur }))
+    Some((k, VolumetricSplit { c, alpha: alphas, inv_schur, above }))
 }
 
 impl VolumetricSplit {
@@ -101,6 +119,12 @@ impl VolumetricSplit {
     /// values), for [`moved`](Self::moved).
     pub fn term(&self) -> RankOneSum {
         self.c.clone()
+    }
+
+    /// The `κ/μ` above which a material's terms are split (those whose volume changes
+    /// [`pays`](Self::pays) reads).
+    pub fn above(&self) -> f64 {
+        self.above
     }
 
     /// Whether the mixed form pays on a configuration whose tetrahedra change their volume
