@@ -151,7 +151,7 @@ pub struct Moved<'a> {
 
 impl Moved<'_> {
     /// `out = A v` for the mixed operator, `ju` computing `Π J u` (the operator of the
-    /// displacements); `s` holds one value per term.
+    /// displacements).
     pub fn apply(
         &self,
         pi: &Projector,
@@ -172,16 +172,14 @@ impl Moved<'_> {
         // (1−α)W C u, then Cᵀ (p − (1−α)W C u) onto the first row.
         self.c.project_into(vu, wcu);
         diff.par_iter_mut().zip(wcu.par_iter()).enumerate().for_each(|(t, (d, w))| {
-            *d = vp[t / 3][t % 3] - w;
+            *d = multiplier(vp, t) - w;
         });
         extra.par_iter_mut().for_each(|x| *x = Vector3::zeros());
         self.c.add_expand(diff, extra);
         pi.apply(extra);
         ou.par_iter_mut().zip(extra.par_iter()).for_each(|(o, e)| *o += e);
-        op.iter_mut().for_each(|o| *o = Vector3::zeros());
-        for (t, w) in wcu.iter().enumerate() {
-            op[t / 3][t % 3] = w - vp[t / 3][t % 3];
-        }
+        diff.iter_mut().for_each(|d| *d = -*d);
+        pack(diff, op);
     }
 
     /// `z = M⁻¹ r`: `p = −r_p / s`, `z_u = B (r_u − Π Cᵀ p)` with `b` applying the two-level
@@ -199,7 +197,7 @@ impl Moved<'_> {
         let SplitScratch { s, v: scratch, .. } = scratch;
         s.resize(terms, 0.0);
         for (t, st) in s.iter_mut().enumerate() {
-            *st = -r[n + t / 3][t % 3] * self.split.inv_schur[t];
+            *st = -multiplier(&r[n..], t) * self.split.inv_schur[t];
         }
         scratch.resize(n, Vector3::zeros());
         scratch.iter_mut().for_each(|x| *x = Vector3::zeros());
@@ -208,9 +206,21 @@ impl Moved<'_> {
         scratch.par_iter_mut().zip(r[..n].par_iter()).for_each(|(x, ri)| *x = ri - *x);
         let (zu, zp) = z.split_at_mut(n);
         b(scratch, zu);
-        zp.iter_mut().for_each(|o| *o = Vector3::zeros());
-        for (t, st) in s.iter().enumerate() {
-            zp[t / 3][t % 3] = *st;
-        }
+        pack(s, zp);
+    }
+}
+
+/// Multiplier `t` of the multipliers packed three to a nodal vector.
+#[inline]
+fn multiplier(packed: &[Vector3<f64>], t: usize) -> f64 {
+    packed[t / 3][t % 3]
+}
+
+/// `values` packed three to a nodal vector into `packed` (the last vector's unused
+/// components zero).
+fn pack(values: &[f64], packed: &mut [Vector3<f64>]) {
+    packed.iter_mut().for_each(|o| *o = Vector3::zeros());
+    for (t, v) in values.iter().enumerate() {
+        packed[t / 3][t % 3] = *v;
     }
 }
