@@ -54,14 +54,21 @@ fn bottom_fixed(m: &Model) -> Projector {
     p
 }
 
+/// The right-hand side of the iteration tests: a shearing nodal load, without the fixed
+/// components.
+fn shear_load(m: &Model, fixed: &Projector) -> Vec<Vector3<f64>> {
+    let mut b: Vec<Vector3<f64>> =
+        m.reference().iter().map(|x| Vector3::new(0.1 * x.z, 0.0, -0.05 * x.x)).collect();
+    fixed.apply(&mut b);
+    b
+}
+
 fn iterations(m: &Model, two_level: bool) -> (usize, f64) {
     let fixed = bottom_fixed(m);
     let tl = preconditioner(m, &fixed);
     let con = tl.constraints();
     let n = m.node_count();
-    let mut b: Vec<Vector3<f64>> =
-        m.reference().iter().map(|x| Vector3::new(0.1 * x.z, 0.0, -0.05 * x.x)).collect();
-    fixed.apply(&mut b);
+    let b = shear_load(m, &fixed);
     let k = m.linear_stiffness();
     let mut ts = tl.scratch();
     let diag: Vec<Matrix3<f64>> =
@@ -243,9 +250,7 @@ fn the_coarse_matrix_of_contact_constraints_is_their_galerkin_matrix_and_saves_i
 fn mixed_iterations(m: &Model, tl: &TwoLevel, fixed: &Projector) -> (usize, f64) {
     let (split, block_tl) = tl.split().expect("a split preconditioner");
     let n = m.node_count();
-    let mut b: Vec<Vector3<f64>> =
-        m.reference().iter().map(|x| Vector3::new(0.1 * x.z, 0.0, -0.05 * x.x)).collect();
-    fixed.apply(&mut b);
+    let b = shear_load(m, fixed);
     let k = m.linear_stiffness();
     let mut ks = k.scratch();
     let mut op = |x: &[Vector3<f64>], y: &mut [Vector3<f64>]| {
