@@ -8,7 +8,7 @@ use bs_mesh::{ElementKind, Mesh, Point3, Vector3};
 
 use crate::assembly::elements::{ElementList, Elements};
 use crate::assembly::stiffness::linear_stiffness;
-use crate::assembly::{Inversion, ReferenceWorkspace, StepBound, Workspace};
+use crate::assembly::{Inversion, ReferenceWorkspace, StepBound, VolumetricScratch, Workspace};
 use crate::element::{Hex, Solid, Tet, TetFormulation};
 use crate::linalg::nodal::NodalMatrix;
 use crate::linalg::sparse::RankOneSum;
@@ -330,14 +330,15 @@ impl Model {
 
     /// The T4ANP nodal volumetric term of `K₀` on the configuration `x`, written into `c`,
     /// and the 99th percentile of `|J − 1|` over materials with `κ/μ > above` (see
-    /// [`crate::assembly::stiffness::volumetric_at`]).
+    /// [`crate::assembly::volumetric::volumetric_at`]).
     pub(crate) fn volumetric_at(
         &self,
         x: &[Point3<f64>],
         c: &mut RankOneSum,
         above: f64,
+        scratch: &mut VolumetricScratch,
     ) -> Option<f64> {
-        crate::assembly::stiffness::volumetric_at(&self.elements, x, c, above)
+        crate::assembly::volumetric::volumetric_at(&self.elements, x, c, above, scratch)
     }
 
     /// Scratch buffers sized for this model.

@@ -10,6 +10,8 @@
 //!   caller-owned [`workspace`]s; [`inversion`]: which element inverted;
 //! * [`scalar`]: the same forces through the scalar reference kernels;
 //! * [`stiffness`]: `K₀`, the small-strain stiffness the preconditioner is built from;
+//! * [`volumetric`]: the T4ANP nodal volumetric term of `K₀` moved to another configuration
+//!   in place (the mixed form's multiplier term);
 //! * [`tangent`]: the consistent element tangent of the Newton reference.
 //!
 //! Architecture invariant: assembly imports the element, kernel and linear-algebra layers;
@@ -26,9 +28,11 @@ pub(crate) mod slots;
 pub(crate) mod step_bound;
 pub(crate) mod stiffness;
 pub(crate) mod tangent;
+pub(crate) mod volumetric;
 pub(crate) mod workspace;
 
 pub use inversion::Inversion;
 pub use scalar::ReferenceWorkspace;
 pub use step_bound::StepBound;
+pub use volumetric::VolumetricScratch;
 pub use workspace::Workspace;

@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 
 use bs_mesh::{Point3, Vector3};
 
+use crate::assembly::VolumetricScratch;
 use crate::linalg::krylov::{Gmres, GmresInfo, NodalMap};
 use crate::linalg::sparse::RankOneSum;
 use crate::linalg::twolevel::{
@@ -37,6 +38,7 @@ pub(crate) struct MixedBuffers {
     /// The volumetric term at the linearisation point.
     term: RankOneSum,
     positions: Vec<Point3<f64>>,
+    volumetric: VolumetricScratch,
 }
 
 impl MixedBuffers {
@@ -51,6 +53,7 @@ impl MixedBuffers {
             tl: block.scratch(),
             term: split.term(),
             positions: Vec::new(),
+            volumetric: VolumetricScratch::default(),
         }
     }
 
@@ -70,7 +73,8 @@ impl MixedBuffers {
         let mixed = slot.as_mut()?;
         mixed.positions.clear();
         mixed.positions.extend(model.reference().iter().zip(u).map(|(p, d)| p + d));
-        let dj = model.volumetric_at(&mixed.positions, &mut mixed.term, split.0.above())?;
+        let (x, term, scratch) = (&mixed.positions, &mut mixed.term, &mut mixed.volumetric);
+        let dj = model.volumetric_at(x, term, split.0.above(), scratch)?;
         split.0.pays(dj).then_some(mixed)
     }
 
