@@ -118,6 +118,11 @@ pub(crate) fn solve(
         } else {
             schedule.equilibrated();
         }
+        // With one level's budget left in the solve's, a level still loading ends at the load
+        // it reached: the solve then ends at a converged fraction of the load.
+        if schedule.loading() && p.max_iterations - work.iterations <= c.level_iterations {
+            schedule.stop();
+        }
         // The error estimate is the whole Newton correction, not the damped step taken.
         it.err = it.direction.par_iter().map(|d| d.amax()).reduce(|| 0.0, f64::max);
         std::mem::swap(&mut it.u, &mut it.trial_u);

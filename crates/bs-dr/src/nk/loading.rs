@@ -67,6 +67,11 @@ impl Schedule {
         self.phi_load = phi;
     }
 
+    /// No more load at this level: it ends at the load applied so far.
+    pub(crate) fn stop(&mut self) {
+        self.target = self.applied;
+    }
+
     /// An equilibrium iteration.
     pub(crate) fn equilibrated(&mut self) {
         self.since_load = self.since_load.saturating_add(1);

@@ -26,7 +26,10 @@ pub struct ContinuationParams {
     /// Failed attempts allowed at one load level before the fallback. Default 5.
     pub max_cutbacks: usize,
     /// Newton iterations allowed at one load level after its last load step before it counts
-    /// as failed. Default 30.
+    /// as failed. Also the share of the solve's budget kept for the end: with this many
+    /// iterations left, a level still loading stops at the load it has applied and is
+    /// equilibrated there, so that a budget spent while loading ends at a converged fraction
+    /// of the load (and the fallback starts from it). Default 30.
     pub level_iterations: usize,
     /// Iterations without a 1 % decrease of the best residual at a level after which it
     /// counts as failed (stalled). Default 8.

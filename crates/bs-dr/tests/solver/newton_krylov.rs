@@ -451,3 +451,35 @@ fn the_converged_answer_is_corrected_by_the_exact_projection_not_by_enforce() {
     assert!(diff <= 1e-12, "{diff:e}");
     assert_eq!(sol.report.contact.nodes_in_contact, honest.report.contact.nodes_in_contact);
 }
+
+#[test]
+fn a_budget_spent_while_loading_ends_at_a_converged_fraction_of_the_load() {
+    // 60 % of the cube's height pushed in: the first load step is cut short by the elements
+    // (at 78.6 % of the push). With a budget of 8 iterations and 6 per level, the level
+    // used to load on to the full push at iteration 8 and end with nothing converged ("0 of
+    // 0.6"); with one level's budget left it ends at the load it has applied and
+    // equilibrates there.
+    let material = Material::neo_hookean(3000.0, 0.45).unwrap();
+    let (mesh, model) = cube_model(Tech::T4, 3, 1.0, 0.2, material);
+    let loads = clamp_and_push(&mesh, 1.0, 0.6);
+    let continuation =
+        ContinuationParams { fallback: false, level_iterations: 6, ..Default::default() };
+    let few = NewtonKrylov::new(NewtonKrylovParams {
+        tolerance: 1e-6,
+        max_iterations: 8,
+        continuation,
+        ..Default::default()
+    });
+    let mut applied = Vec::new();
+    let err = few.solve(&model, &loads, &mut NoContact, &mut |p| applied.push(p.load_factor));
+    let first = applied[0];
+    assert!(first > 0.5 && first < 1.0, "the first load step is cut short: {first}");
+    match err {
+        Err(SolveError::LoadNotCarried {
+            reached, cause: LoadFailure::Exhausted { .. }, ..
+        }) => {
+            assert_eq!(reached, first, "ends at the load the first step applied");
+        }
+        other => panic!("{:?}", other.map(|s| s.report.steps)),
+    }
+}
