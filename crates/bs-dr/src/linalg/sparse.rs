@@ -176,25 +176,38 @@ impl RankOneSum {
     /// `s = W C x` (one scalar per term) into `s`.
     pub fn project_into(&self, x: &[Vector3<f64>], s: &mut [f64]) {
         s.par_iter_mut().enumerate().with_min_len(MIN_ROWS).for_each(|(t, st)| {
-            let (lo, hi) = (self.c_ptr[t] as usize, self.c_ptr[t + 1] as usize);
-            let mut acc = 0.0;
-            for k in lo..hi {
-                acc += self.c_val[k].dot(&x[self.c_col[k] as usize]);
-            }
-            *st = self.weight[t] * acc;
+            *st = self.project_row(t, x);
         });
     }
 
     /// `y += Cᵀ s`.
     pub fn add_expand(&self, s: &[f64], y: &mut [Vector3<f64>]) {
         y.par_iter_mut().enumerate().with_min_len(MIN_ROWS).for_each(|(n, yn)| {
-            let (lo, hi) = (self.t_ptr[n] as usize, self.t_ptr[n + 1] as usize);
-            let mut acc = Vector3::zeros();
-            for k in lo..hi {
-                acc += self.t_val[k] * s[self.t_col[k] as usize];
-            }
-            *yn += acc;
+            *yn += self.expand_row(n, s);
         });
+    }
+
+    /// `(Cᵀ s)_n`: row `n` of [`add_expand`](Self::add_expand), for passes that do more
+    /// per node.
+    #[inline]
+    pub fn expand_row(&self, n: usize, s: &[f64]) -> Vector3<f64> {
+        let (lo, hi) = (self.t_ptr[n] as usize, self.t_ptr[n + 1] as usize);
+        let mut acc = Vector3::zeros();
+        for k in lo..hi {
+            acc += self.t_val[k] * s[self.t_col[k] as usize];
+        }
+        acc
+    }
+
+    /// `(W C x)_t`: term `t` of [`project_into`](Self::project_into).
+    #[inline]
+    pub fn project_row(&self, t: usize, x: &[Vector3<f64>]) -> f64 {
+        let (lo, hi) = (self.c_ptr[t] as usize, self.c_ptr[t + 1] as usize);
+        let mut acc = 0.0;
+        for k in lo..hi {
+            acc += self.c_val[k].dot(&x[self.c_col[k] as usize]);
+        }
+        self.weight[t] * acc
     }
 }
 

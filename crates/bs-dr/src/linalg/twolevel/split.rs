@@ -77,7 +77,6 @@ pub const SCHUR_SCALE: f64 = 0.25;
 #[derive(Debug, Default)]
 pub struct SplitScratch {
     s: Vec<f64>,
-    t: Vec<f64>,
     v: Vec<Vector3<f64>>,
 }
 
@@ -164,22 +163,18 @@ impl Moved<'_> {
         let (vu, vp) = v.split_at(n);
         let (ou, op) = out.split_at_mut(n);
         ju(vu, ou);
-        let terms = self.c.terms();
-        let SplitScratch { s: wcu, t: diff, v: extra } = scratch;
-        wcu.resize(terms, 0.0);
-        diff.resize(terms, 0.0);
-        extra.resize(n, Vector3::zeros());
-        // (1−α)W C u, then Cᵀ (p − (1−α)W C u) onto the first row.
-        self.c.project_into(vu, wcu);
-        diff.par_iter_mut().zip(wcu.par_iter()).enumerate().for_each(|(t, (d, w))| {
-            *d = multiplier(vp, t) - w;
+        let c = self.c;
+        let diff = &mut scratch.s;
+        diff.resize(c.terms(), 0.0);
+        // p − (1−α)W C u, then Π Cᵀ (p − (1−α)W C u) onto the first row.
+        diff.par_iter_mut().enumerate().with_min_len(ROWS).for_each(|(t, d)| {
+            *d = multiplier(vp, t) - c.project_row(t, vu);
         });
-        extra.par_iter_mut().for_each(|x| *x = Vector3::zeros());
-        self.c.add_expand(diff, extra);
-        pi.apply(extra);
-        ou.par_iter_mut().zip(extra.par_iter()).for_each(|(o, e)| *o += e);
-        diff.iter_mut().for_each(|d| *d = -*d);
-        pack(diff, op);
+        let diff = &*diff;
+        ou.par_iter_mut().enumerate().with_min_len(ROWS).for_each(|(a, o)| {
+            *o += projected(pi, a, c.expand_row(a, diff));
+        });
+        pack(diff, -1.0, op);
     }
 
     /// `z = M⁻¹ r`: `p = −r_p / s`, `z_u = B (r_u − Π Cᵀ p)` with `b` applying the two-level
@@ -193,21 +188,33 @@ impl Moved<'_> {
         scratch: &mut SplitScratch,
         b: &mut NodalMap<'_>,
     ) {
-        let terms = self.c.terms();
-        let SplitScratch { s, v: scratch, .. } = scratch;
-        s.resize(terms, 0.0);
-        for (t, st) in s.iter_mut().enumerate() {
-            *st = -multiplier(&r[n..], t) * self.split.inv_schur[t];
-        }
-        scratch.resize(n, Vector3::zeros());
-        scratch.iter_mut().for_each(|x| *x = Vector3::zeros());
-        self.c.add_expand(s, scratch);
-        pi.apply(scratch);
-        scratch.par_iter_mut().zip(r[..n].par_iter()).for_each(|(x, ri)| *x = ri - *x);
+        let c = self.c;
+        let SplitScratch { s, v: ru } = scratch;
+        s.resize(c.terms(), 0.0);
+        let inv_schur = &self.split.inv_schur;
+        s.par_iter_mut().enumerate().with_min_len(ROWS).for_each(|(t, st)| {
+            *st = -multiplier(&r[n..], t) * inv_schur[t];
+        });
+        let s = &*s;
+        ru.resize(n, Vector3::zeros());
+        ru.par_iter_mut()
+            .zip(r[..n].par_iter())
+            .enumerate()
+            .with_min_len(ROWS)
+            .for_each(|(a, (x, ri))| *x = ri - projected(pi, a, c.expand_row(a, s)));
         let (zu, zp) = z.split_at_mut(n);
-        b(scratch, zu);
-        pack(s, zp);
+        b(ru, zu);
+        pack(s, 1.0, zp);
     }
+}
+
+/// Rows (terms or nodes) per rayon task of the split's passes.
+const ROWS: usize = 512;
+
+/// `Π_a x`.
+#[inline]
+fn projected(pi: &Projector, a: usize, x: Vector3<f64>) -> Vector3<f64> {
+    if pi.constrained[a] { pi.matrix[a] * x } else { x }
 }
 
 /// Multiplier `t` of the multipliers packed three to a nodal vector.
@@ -216,11 +223,10 @@ fn multiplier(packed: &[Vector3<f64>], t: usize) -> f64 {
     packed[t / 3][t % 3]
 }
 
-/// `values` packed three to a nodal vector into `packed` (the last vector's unused
+/// `sign · values` packed three to a nodal vector into `packed` (the last vector's unused
 /// components zero).
-fn pack(values: &[f64], packed: &mut [Vector3<f64>]) {
-    packed.iter_mut().for_each(|o| *o = Vector3::zeros());
-    for (t, v) in values.iter().enumerate() {
-        packed[t / 3][t % 3] = *v;
-    }
+fn pack(values: &[f64], sign: f64, packed: &mut [Vector3<f64>]) {
+    packed.par_iter_mut().enumerate().with_min_len(ROWS).for_each(|(i, o)| {
+        *o = Vector3::from_fn(|k, _| values.get(3 * i + k).map_or(0.0, |v| sign * v));
+    });
 }
