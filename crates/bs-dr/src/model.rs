@@ -5,10 +5,12 @@
 //! forces, workspaces, `K₀`.
 
 use bs_mesh::{ElementKind, Mesh, Point3, Vector3};
+use rayon::prelude::*;
 
 use crate::assembly::elements::{ElementList, Elements};
 use crate::assembly::stiffness::linear_stiffness;
 use crate::assembly::{Inversion, ReferenceWorkspace, StepBound, VolumetricScratch, Workspace};
+use crate::element::bound::BoundModuli;
 use crate::element::{Hex, Solid, Tet, TetFormulation};
 use crate::linalg::nodal::NodalMatrix;
 use crate::linalg::sparse::RankOneSum;
@@ -141,6 +143,27 @@ fn check_element(
     }
 }
 
+/// `λ_max` of every element's small-strain stiffness, in mesh order (each solid's `D^(1/2)`
+/// computed once; the elements in parallel).
+fn stiffness_bounds(
+    solids: &[Solid],
+    ne: usize,
+    (tets, tet_elem): (&[Tet], &[u32]),
+    (hexes, hex_elem): (&[Hex], &[u32]),
+) -> Vec<f64> {
+    let moduli: Vec<BoundModuli> =
+        solids.iter().map(|s| BoundModuli::new(&s.material.elastic())).collect();
+    let tet_bounds: Vec<f64> =
+        tets.par_iter().map(|t| t.stiffness_bound(&moduli[t.mat as usize])).collect();
+    let hex_bounds: Vec<f64> =
+        hexes.par_iter().map(|h| h.stiffness_bound(&moduli[h.mat as usize])).collect();
+    let mut bound = vec![0.0; ne];
+    for (&e, b) in tet_elem.iter().zip(tet_bounds).chain(hex_elem.iter().zip(hex_bounds)) {
+        bound[e as usize] = b;
+    }
+    bound
+}
+
 /// The mesh has elements, one solid index each, and the options and solids are valid.
 fn check_inputs(
     mesh: &Mesh,
@@ -188,7 +211,6 @@ impl Model {
         let (ne, nn) = (mesh.elements.len(), mesh.nodes.len());
         let eid = |e: usize| mesh.element_ids.get(e).copied().unwrap_or(e as u64 + 1);
         let (mut tets, mut tet_elem, mut hexes, mut hex_elem) = (vec![], vec![], vec![], vec![]);
-        let mut stiffness_bound = vec![0.0; ne];
         for (e, elem) in mesh.elements.iter().enumerate() {
             let s = element_solid[e];
             check_element(mesh, e, s, solids.len(), eid(e))?;
@@ -200,7 +222,6 @@ impl Model {
                 ElementKind::Tet4 => {
                     let nodes = std::array::from_fn(|a| n[a] as u32);
                     let t = Tet::new(nodes, s as u32, &corners(mesh, n)).map_err(inverted)?;
-                    stiffness_bound[e] = t.stiffness_bound(&el);
                     tets.push(t);
                     tet_elem.push(e as u32);
                 }
@@ -209,12 +230,12 @@ impl Model {
                     let x = corners(mesh, n);
                     let h =
                         Hex::new(nodes, s as u32, &x, &el, options.hourglass).map_err(inverted)?;
-                    stiffness_bound[e] = h.stiffness_bound(&el);
                     hexes.push(h);
                     hex_elem.push(e as u32);
                 }
             }
         }
+        let stiffness_bound = stiffness_bounds(solids, ne, (&tets, &tet_elem), (&hexes, &hex_elem));
         // The assembly runs the tets in Morton order of their centroids (memory locality);
         // each keeps its mesh element index.
         let centroids: Vec<Point3<f64>> = tets
