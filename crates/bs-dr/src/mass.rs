@@ -2,6 +2,11 @@
 //! Dynamic Relaxation's fictitious masses, all from each element's volume, density and
 //! stiffness bound, shared equally by its nodes.
 
+use bs_mesh::Vector3;
+use rayon::prelude::*;
+
+use crate::element::Tet;
+use crate::element::bound::BoundModuli;
 use crate::model::Model;
 
 impl Model {
@@ -50,15 +55,50 @@ impl Model {
     /// element's critical step. `step_fraction = f < 1` keeps every element below its
     /// critical step; `f = 1.5` is 1.5× critical.
     pub fn dr_masses_into(&self, step_fraction: f64, masses: &mut [f64]) {
+        self.masses_from_bounds(step_fraction, &self.stiffness_bound, masses);
+    }
+
+    /// The masses of [`dr_masses_into`](Self::dr_masses_into) from the element bounds `bound`.
+    fn masses_from_bounds(&self, step_fraction: f64, bound: &[f64], masses: &mut [f64]) {
         masses.iter_mut().for_each(|m| *m = 0.0);
         let f2 = step_fraction * step_fraction;
         for (e, v) in self.elements.iter() {
             let n = v.len() as f64;
-            let me = n * self.stiffness_bound[e] / (4.0 * f2);
+            let me = n * bound[e] / (4.0 * f2);
             for &a in v.nodes {
                 masses[a as usize] += me / n;
             }
         }
+    }
+
+    /// [`dr_masses_into`](Self::dr_masses_into) for a run that starts from the displacements
+    /// `u` instead of the reference state: each tetrahedron's bound is the larger of its
+    /// reference one and the one of its shape at `X + u` (same moduli). A start state with
+    /// elements flattened under a deep push (the continuation's last converged level) has
+    /// critical steps far below the reference ones, and masses from the reference shapes
+    /// make the explicit iteration unstable at once. A tetrahedron inverted or flat at
+    /// `X + u` keeps its reference bound (the forces will name it).
+    pub fn dr_masses_at_into(&self, step_fraction: f64, u: &[Vector3<f64>], masses: &mut [f64]) {
+        if u.iter().all(|d| *d == Vector3::zeros()) {
+            return self.dr_masses_into(step_fraction, masses);
+        }
+        let moduli: Vec<BoundModuli> =
+            self.elements.solids.iter().map(|s| BoundModuli::new(&s.material.elastic())).collect();
+        let reference = &self.reference;
+        let (tets, tet_elem) = (&self.elements.tets, &self.elements.tet_elem);
+        let moved: Vec<f64> = tets
+            .par_iter()
+            .map(|t| {
+                let x = t.nodes.map(|a| reference[a as usize] + u[a as usize]);
+                Tet::new(t.nodes, t.mat, &x)
+                    .map_or(0.0, |m| m.stiffness_bound(&moduli[t.mat as usize]))
+            })
+            .collect();
+        let mut bound = self.stiffness_bound.clone();
+        for (&e, b) in tet_elem.iter().zip(moved) {
+            bound[e as usize] = bound[e as usize].max(b);
+        }
+        self.masses_from_bounds(step_fraction, &bound, masses);
     }
 
     /// Total reference volume and volume-weighted sum of the small-strain shear moduli.
@@ -76,6 +116,8 @@ impl Model {
 #[cfg(test)]
 mod tests {
     use bs_material::Material;
+
+    use bs_mesh::Vector3;
 
     use crate::tests::{distorted_mesh, model};
     use crate::{Model, ModelOptions, Solid};
@@ -129,5 +171,39 @@ mod tests {
         // Node 8 belongs to the two tets only: a quarter of each.
         let t = mesh.element_volume(1) + mesh.element_volume(2);
         assert!((masses[8] - 1000.0 * t / 4.0).abs() <= 1e-12 * masses[8]);
+    }
+
+    /// Masses for a start from a deformed state: each tet's bound is the larger of its
+    /// reference one and the one of the same mesh built with the deformed nodes as its
+    /// reference (an independent model); from zero displacements, the reference masses.
+    #[test]
+    fn dr_masses_at_a_deformed_state_take_each_tets_stiffer_shape() {
+        let solid = Solid { material: Material::neo_hookean(3000.0, 0.45).unwrap(), density: 1.0 };
+        let mesh = bs_mesh::structured::box_mesh(2, 1.0, true);
+        let m = Model::uniform(&mesh, solid, ModelOptions::default()).unwrap();
+        let n = m.node_count();
+        let (mut base, mut at) = (vec![0.0; n], vec![0.0; n]);
+        m.dr_masses_into(0.8, &mut base);
+        m.dr_masses_at_into(0.8, &vec![Vector3::zeros(); n], &mut at);
+        assert_eq!(base, at);
+        // The top pushed down by 0.45 with a strain growing to 90 % there: the upper tets flatten.
+        let u: Vec<Vector3<f64>> =
+            mesh.nodes.iter().map(|p| Vector3::new(0.0, 0.0, -0.45 * p.z * p.z)).collect();
+        m.dr_masses_at_into(0.8, &u, &mut at);
+        let mut moved = mesh.clone();
+        moved.nodes.iter_mut().zip(&u).for_each(|(p, d)| *p += d);
+        let md = Model::uniform(&moved, solid, ModelOptions::default()).unwrap();
+        let mut expected = vec![0.0; n];
+        for (e, v) in m.elements.iter() {
+            let b = m.stiffness_bound[e].max(md.stiffness_bound[e]);
+            for &a in v.nodes {
+                expected[a as usize] += b / (4.0 * 0.64);
+            }
+        }
+        for (a, (x, y)) in at.iter().zip(&expected).enumerate() {
+            assert!((x - y).abs() <= 1e-12 * y, "node {a}: {x} vs {y}");
+        }
+        let most = at.iter().zip(&base).map(|(x, y)| x / y).fold(0.0, f64::max);
+        assert!(most > 1.2, "the flat tets are stiffer: {most}");
     }
 }

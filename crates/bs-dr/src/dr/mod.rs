@@ -6,7 +6,9 @@
 //! `u⁺ = u + ρ² (u − u⁻) + ((1+ρ) h / 2)² M⁻¹ (f_ext − f_int(u))`, `f_ext = 0` (zero traction).
 //!
 //! * Masses are fictitious ([`Model::dr_masses_into`]): element `e` gets the mass that makes
-//!   its own critical step `h / step_fraction`, so every node has the same stable step.
+//!   its own critical step `h / step_fraction`, so every node has the same stable step (from
+//!   a deformed start state, the stiffer of each tet's reference and current shapes:
+//!   [`Model::dr_masses_at_into`]).
 //! * The convergence rate `ρ = (κ − 1)/(κ + 1)`, `κ = 2/(ω_min h)`, comes from a
 //!   Rayleigh-quotient estimate of the lowest eigenvalue of `M⁻¹K` taken from snapshots every
 //!   `snapshot_interval` steps after the ramp: `ω²_min ≈ |Δuᵀ Δf| / (Δuᵀ M Δu)` over free
@@ -66,7 +68,7 @@ struct Setup {
 impl Setup {
     fn new(model: &Model, loads: &Loads, step_fraction: f64, start: &[Vector3<f64>]) -> Self {
         let mut masses = vec![0.0; model.node_count()];
-        model.dr_masses_into(step_fraction, &mut masses);
+        model.dr_masses_at_into(step_fraction, start, &mut masses);
         let inv_m = masses.iter().map(|&m| if m > 0.0 { 1.0 / m } else { 0.0 }).collect();
         let (free, fixed) = loads.split_dofs();
         let fixed_value = fixed.iter().map(|&d| loads.value(d / 3, d % 3)).collect();
