@@ -72,8 +72,7 @@ pub(crate) fn solve(
     let tol = if target < 1.0 { pb.tol * c.intermediate_tolerance } else { pb.tol };
     let mut schedule = Schedule::new(applied, target, c.equilibrium_iterations, 0.1);
     let mut term = Termination::new(tol, c.level_iterations, c.stall_iterations);
-    let bounds = (p.forcing_min, p.forcing_max, p.forcing_settled_max);
-    let mut forcing = Forcing::new(bounds, p.forcing_active_set);
+    let mut forcing = Forcing::new(p.forcing_min, p.forcing_max, p.forcing_active_set);
     let mut limiting = None;
     loop {
         if work.iterations >= p.max_iterations {

@@ -101,10 +101,6 @@ pub struct NewtonKrylovParams {
     /// Relative residual asked of a linear solve while the contact active set still changes
     /// in more than 1% of the contact nodes. Default 0.5.
     pub forcing_active_set: f64,
-    /// Largest relative residual asked of a linear solve once the active set stands still
-    /// and the next correction is predicted far below the tolerance (the solve then only has
-    /// to confirm it: [`forcing`](super::forcing)). Default 0.5.
-    pub forcing_settled_max: f64,
     /// Smallest relative residual asked of a linear solve. Default 1e-2 (a correction then
     /// carries an error of about 1% of itself, far below the tolerance near convergence).
     pub forcing_min: f64,
@@ -132,7 +128,6 @@ impl Default for NewtonKrylovParams {
             restart: 40,
             forcing_max: 0.1,
             forcing_active_set: 0.5,
-            forcing_settled_max: 0.5,
             forcing_min: 1e-2,
             divergence_factor: 100.0,
             continuation: ContinuationParams::default(),
@@ -160,7 +155,6 @@ impl NewtonKrylovParams {
         at_least_one("restart", self.restart)?;
         open_unit("forcing_max", self.forcing_max)?;
         open_unit("forcing_active_set", self.forcing_active_set)?;
-        open_unit("forcing_settled_max", self.forcing_settled_max)?;
         param(
             "forcing_min",
             self.forcing_min,
