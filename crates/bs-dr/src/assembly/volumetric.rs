@@ -8,7 +8,7 @@ use rayon::prelude::*;
 
 use super::elements::Elements;
 use crate::element::Tet;
-use crate::linalg::sparse::RankOneSum;
+use crate::linalg::sparse::{RankOneSum, split_rows};
 
 /// Caller-owned buffers of [`volumetric_at`]: the tetrahedra at the configuration, their
 /// volume changes, and two index maps of the term's pattern (made at the first call, kept
@@ -102,9 +102,11 @@ fn fill_rows(elements: &Elements, tets: &[Tet], entry: &[u32], c: &mut RankOneSu
     let RankOneSum { weight, c_ptr, c_val, .. } = c;
     c_val.par_iter_mut().with_min_len(1024).for_each(|v| *v = Vector3::zeros());
     // Each term writes only its own row's entries: split the values by rows.
-    let rows = rows_mut(c_ptr, c_val);
+    let c_ptr = &*c_ptr;
+    let rows = split_rows(c_ptr, c_val);
     rows.into_par_iter().zip(weight.par_iter_mut()).enumerate().with_min_len(128).for_each(
-        |(r, ((lo, vals), w))| {
+        |(r, (vals, w))| {
+            let lo = c_ptr[r] as usize;
             let (mut vol, mut vk) = (0.0, 0.0);
             let first = elements.anp_ptr[r] as usize;
             for (k, &s) in elements.anp_slots(r).iter().enumerate() {
@@ -124,17 +126,6 @@ fn fill_rows(elements: &Elements, tets: &[Tet], entry: &[u32], c: &mut RankOneSu
             *w = if vol > 0.0 { vk / 4.0 } else { 0.0 };
         },
     );
-}
-
-/// `val` cut into the rows of `ptr`, each with the offset of its first entry.
-fn rows_mut<'a, T>(ptr: &[u32], mut val: &'a mut [T]) -> Vec<(usize, &'a mut [T])> {
-    let mut rows = Vec::with_capacity(ptr.len().saturating_sub(1));
-    for w in ptr.windows(2) {
-        let (row, rest) = val.split_at_mut((w[1] - w[0]) as usize);
-        rows.push((w[0] as usize, row));
-        val = rest;
-    }
-    rows
 }
 
 /// Per averaging slot and corner, the entry of `C` in the slot's term row holding the
