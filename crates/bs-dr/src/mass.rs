@@ -82,8 +82,7 @@ impl Model {
         if u.iter().all(|d| *d == Vector3::zeros()) {
             return self.dr_masses_into(step_fraction, masses);
         }
-        let moduli: Vec<BoundModuli> =
-            self.elements.solids.iter().map(|s| BoundModuli::new(&s.material.elastic())).collect();
+        let moduli = BoundModuli::of(&self.elements.solids);
         let reference = &self.reference;
         let (tets, tet_elem) = (&self.elements.tets, &self.elements.tet_elem);
         let moved: Vec<f64> = tets

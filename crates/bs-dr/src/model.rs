@@ -151,8 +151,7 @@ fn stiffness_bounds(
     (tets, tet_elem): (&[Tet], &[u32]),
     (hexes, hex_elem): (&[Hex], &[u32]),
 ) -> Vec<f64> {
-    let moduli: Vec<BoundModuli> =
-        solids.iter().map(|s| BoundModuli::new(&s.material.elastic())).collect();
+    let moduli = BoundModuli::of(solids);
     let tet_bounds: Vec<f64> =
         tets.par_iter().map(|t| t.stiffness_bound(&moduli[t.mat as usize])).collect();
     let hex_bounds: Vec<f64> =

@@ -5,6 +5,7 @@
 use bs_material::{Elastic, Tangent};
 use nalgebra::{SMatrix, SymmetricEigen};
 
+use super::Solid;
 use super::hex::Hex;
 use super::tet::Tet;
 
@@ -15,6 +16,11 @@ pub(crate) struct BoundModuli {
 }
 
 impl BoundModuli {
+    /// The moduli of each solid, in solid order.
+    pub(crate) fn of(solids: &[Solid]) -> Vec<BoundModuli> {
+        solids.iter().map(|s| BoundModuli::new(&s.material.elastic())).collect()
+    }
+
     pub(crate) fn new(el: &Elastic) -> Self {
         let eig = SymmetricEigen::new(el.small_strain_tangent());
         let sqrt_d = eig.eigenvectors
