@@ -15,16 +15,17 @@ use crate::scene::SolverKind;
 ///
 /// Newton–Krylov adds per node the GMRES basis (81 nodal vectors) and the preconditioner
 /// (stiffness blocks in double and single precision, the nodal volumetric terms, the
-/// prolongator), and a base for the coarse factor: 6.5 kB per node, 1 kB per tet, 12 MB;
-/// fitted on the three MNI152 meshes (peak resident 85, 190 and 382 MB for 5021, 13 975 and
-/// 31 006 nodes; within 5 %).
+/// prolongator, and `K₀`, `P` and `K₀ P` kept to rebuild the coarse matrix for the contact
+/// set), and a base for the coarse factor: 13.8 kB per node, 1 kB per tet, 12 MB; fitted on
+/// the three MNI152 meshes (peak resident 118, 286 and 613 MB for 5021, 13 975 and
+/// 31 006 nodes, `/usr/bin/time`, 2026-11-28; within 1 %).
 pub fn estimate(p: &Prepared) -> f64 {
     let (tets, hexes) = p.mesh.count_by_kind();
     let nodes = p.mesh.nodes.len() as f64;
     let skull = p.skull.as_ref().map_or(0, |s| s.triangles.len()) as f64;
     match p.scene.solver.kind {
         SolverKind::NewtonKrylov => {
-            12e6 + nodes * 6500.0 + tets as f64 * 1000.0 + hexes as f64 * 3500.0 + skull * 1500.0
+            12e6 + nodes * 13_800.0 + tets as f64 * 1000.0 + hexes as f64 * 3500.0 + skull * 1500.0
         }
         SolverKind::Dr | SolverKind::Newton => {
             nodes * 600.0 + tets as f64 * 600.0 + hexes as f64 * 2500.0 + skull * 1500.0

@@ -43,17 +43,11 @@ impl Run {
     /// Composes `prepared`, refuses it if the memory estimate exceeds what the machine has
     /// or a brain node starts outside the skull, and prepares the solver.
     pub fn prepare(prepared: Prepared) -> Result<Run, SceneError> {
-        Run::prepare_with(prepared, false)
-    }
-
-    /// [`prepare`](Self::prepare), for a live session when `live` (see
-    /// [`SolveSettings::contact_coarse`]).
-    pub(crate) fn prepare_with(prepared: Prepared, live: bool) -> Result<Run, SceneError> {
         crate::memory::require_fits(&prepared, crate::memory::available())?;
         let started = Instant::now();
         let mut composed = compose(&prepared)?;
         composed.check_initial_gap(&prepared)?;
-        let settings = SolveSettings { contact_coarse: live, ..SolveSettings::of(&prepared) };
+        let settings = SolveSettings::of(&prepared);
         prepare_solver(&mut composed, &settings)?;
         Ok(Run { prepared, composed, settings, prepare_seconds: started.elapsed().as_secs_f64() })
     }

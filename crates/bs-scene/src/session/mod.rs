@@ -57,7 +57,7 @@ pub struct Session {
 impl Session {
     /// Does the pre-operative work for `prepared` (see [`Run::prepare`]).
     pub fn new(prepared: Prepared) -> Result<Session, SceneError> {
-        let run = Run::prepare_with(prepared, true)?;
+        let run = Run::prepare(prepared)?;
         let n = run.prepared.mesh.nodes.len();
         let scene_prescribed = run.prepared.prescribed.clone();
         let history = History::reference(&scene_prescribed);

@@ -11,9 +11,11 @@ pub struct TwoLevelParams {
     /// Lower end of the smoothed interval as a fraction of `λ_max(D⁻¹K₀)`. Default 0.1.
     pub lower: f64,
     /// Keep `K₀`, the prolongator and `K₀ P` after the setup, so that a solve can rebuild
-    /// the coarse matrix for its contact constraints (`TwoLevel::constrain_coarse`). For live
-    /// sessions, whose updates start with nodes already held on the skull; it costs the
-    /// memory of those matrices (about 80 MB on the MNI152 demo). Default false.
+    /// the coarse matrix for its contact constraints (`TwoLevel::constrain_coarse`); not kept
+    /// for a split (the mixed form's block keeps the setup's coarse matrix). bs-scene sets
+    /// it for every solve: fewer GMRES iterations once nodes are held on the skull (the
+    /// MNI152 demo's cold solve 78 → 51) for the memory of those matrices (about 30 MB
+    /// there). Default false.
     pub contact_coarse: bool,
     /// Solve in the mixed form of `split` when a T4ANP nodal volumetric term is
     /// stiffer than this many times the shear stiffness around it (`κ̄/μ̄`; ν = 0.49 gives
