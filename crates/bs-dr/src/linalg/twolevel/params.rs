@@ -12,7 +12,9 @@ pub struct TwoLevelParams {
     pub lower: f64,
     /// Keep `K₀`, the prolongator and `K₀ P` after the setup, so that a solve can rebuild
     /// the coarse matrix for its contact constraints (`TwoLevel::constrain_coarse`); not kept
-    /// for a split (the mixed form's block keeps the setup's coarse matrix). bs-scene sets
+    /// for a split (the mixed form's block keeps the setup's coarse matrix), nor where the
+    /// coarse factor is as dense as `K₀` (a build would cost several GMRES iterations, as on
+    /// a 852k-tet brain). bs-scene sets
     /// it for every solve: fewer GMRES iterations once nodes are held on the skull (the
     /// MNI152 demo's cold solve 78 → 51) for the memory of those matrices (about 30 MB
     /// there). Default false.

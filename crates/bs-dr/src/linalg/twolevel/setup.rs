@@ -57,6 +57,17 @@ const STALE_FRACTION: f64 = 1.0;
 /// and 18 builds against 177 and 19 with a minimum of 8).
 const STALE_MIN: usize = 50;
 
+/// The contact set's coarse matrix is kept only while its factor has at most this many
+/// nonzeros per scalar nonzero of `K₀`'s element part: a build refactorises it, and the
+/// factor's cost grows faster than the mesh. Measured (nonzeros of the factor per nonzero
+/// of `K₀`, time of a build, Newton / GMRES iterations of the cold solve without and with
+/// the kept matrices): MNI152 coarse mesh 0.25, 12 / 74 → 12 / 56; demo 0.33, 15–45 ms,
+/// 14 / 78 → 13 / 51; fine 0.41, 12 / 83 → 12 / 60; the 852k-tet brain 0.94–1.0, 0.9–1.5 s
+/// (ten GMRES iterations there), 14 / 117 → 16 / 196 (a coarse matrix built for a contact
+/// set that then moved on; rebuilt whenever a quarter of the held nodes changed, 13 / 96
+/// but six builds); the ellipsoid's rim mesh 0.87–0.90 (not kept).
+const CONTACT_COARSE_FILL: f64 = 0.5;
+
 /// `K₀`, the prolongator, `K₀ P` (double precision) and the assembled `Pᵀ K₀ P`, kept
 /// after the setup.
 #[derive(Debug)]
@@ -122,7 +133,8 @@ impl TwoLevel {
         // The mixed form's solves use the block's preconditioner, whose coarse matrix stays
         // the setup's: building one for the contact set there was measured worse (MNI152 at
         // ν = 0.499: 25 Newton / 199 GMRES iterations against 16 / 162).
-        let keep = params.contact_coarse && split.is_none();
+        let fill = coarse.values.len() as f64 / (9 * k.assembled.col.len()) as f64;
+        let keep = params.contact_coarse && split.is_none() && fill <= CONTACT_COARSE_FILL;
         let retained = keep.then_some(Retained { k, p, kp, galerkin: g.matrix });
         Ok(TwoLevel {
             diag,

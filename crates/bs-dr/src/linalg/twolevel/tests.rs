@@ -245,6 +245,28 @@ fn the_coarse_matrix_of_contact_constraints_is_their_galerkin_matrix_and_saves_i
     assert!(free.coarse.is_none());
 }
 
+/// The contact set's coarse matrix is kept where its factor is sparse next to `K₀` (large
+/// aggregates) and not where it is about as dense (aggregates of a node or two), where a
+/// rebuild would cost as much as several GMRES iterations.
+#[test]
+fn the_contact_coarse_matrix_is_kept_only_where_its_factor_is_sparse() {
+    let m = model(TetFormulation::T4Anp, 6);
+    let fixed = bottom_fixed(&m);
+    let kept = |aggregate_size: f64| {
+        let params =
+            TwoLevelParams { contact_coarse: true, aggregate_size, ..TwoLevelParams::default() };
+        let k = m.linear_stiffness();
+        let tl = TwoLevel::new(k, m.reference(), m.mean_edge(), &fixed, params).unwrap();
+        let (_, factor, _) = tl.sizes();
+        let fill = factor as f64 / (9 * m.linear_stiffness().assembled.col.len()) as f64;
+        (tl.retained.is_some(), fill)
+    };
+    let (sparse, fill) = kept(4.2);
+    assert!(sparse && fill < 0.5, "aggregates of 4.2 edges: kept, fill {fill}");
+    let (dense, fill) = kept(1.0);
+    assert!(!dense && fill > 0.5, "aggregates of one edge: not kept, fill {fill}");
+}
+
 /// GMRES iterations (to 1e-8) of `Π K₀ Π u = b` in the mixed form of the split of `tl`, and
 /// the relative residual of the displacements it returns in `Π K₀ Π u = b` itself.
 fn mixed_iterations(m: &Model, tl: &TwoLevel, fixed: &Projector) -> (usize, f64) {
