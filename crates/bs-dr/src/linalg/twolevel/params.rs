@@ -14,10 +14,9 @@ pub struct TwoLevelParams {
     /// the coarse matrix for its contact constraints (`TwoLevel::constrain_coarse`); not kept
     /// for a split (the mixed form's block keeps the setup's coarse matrix), nor where the
     /// coarse factor is as dense as `K₀` (a build would cost several GMRES iterations, as on
-    /// a 852k-tet brain). bs-scene sets
-    /// it for every solve: fewer GMRES iterations once nodes are held on the skull (the
-    /// MNI152 demo's cold solve 78 → 51) for the memory of those matrices (about 30 MB
-    /// there). Default false.
+    /// a 852k-tet brain). bs-scene sets it for every solve: fewer GMRES iterations once
+    /// nodes are held on the skull (the MNI152 demo's cold solve 78 → 51) for the memory of
+    /// those matrices (about 30 MB there). Default false.
     pub contact_coarse: bool,
     /// Solve in the mixed form of `split` when a T4ANP nodal volumetric term is
     /// stiffer than this many times the shear stiffness around it (`κ̄/μ̄`; ν = 0.49 gives
