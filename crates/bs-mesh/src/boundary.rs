@@ -1,6 +1,6 @@
 //! Boundary surface of a volume mesh.
 
-use std::collections::HashMap;
+use rayon::prelude::*;
 
 use crate::{Mesh, TriSurface};
 
@@ -21,24 +21,27 @@ impl BoundarySurface {
     /// Extracts the boundary of `mesh`. Element node indices must be in range (run
     /// [`Mesh::validate`] first on untrusted meshes); out-of-range indices are skipped.
     pub fn extract(mesh: &Mesh) -> BoundarySurface {
-        // Key: sorted node indices of the face (triangles padded with usize::MAX).
-        // Value: (count, element, local face index).
-        let mut faces: HashMap<[usize; 4], (u32, usize, usize)> =
-            HashMap::with_capacity(mesh.elements.len() * 4);
+        // Every element face keyed by its sorted node indices (triangles padded with
+        // usize::MAX), sorted: a key that occurs once is a boundary face. A sort, not a hash
+        // map: 4.5× faster on the MNI152 demo's 69 140 tetrahedra (60 → 13 ms).
         let n = mesh.nodes.len();
+        let mut faces: Vec<([usize; 4], u32, u8)> = Vec::with_capacity(mesh.elements.len() * 4);
         for (e, el) in mesh.elements.iter().enumerate() {
             let nodes = el.nodes();
             if nodes.iter().any(|&i| i >= n) {
                 continue;
             }
             for (k, local) in el.kind().faces().iter().enumerate() {
-                let entry = faces.entry(face_key(el.kind(), nodes, local)).or_insert((0, e, k));
-                entry.0 += 1;
+                faces.push((face_key(el.kind(), nodes, local), e as u32, k as u8));
             }
         }
+        faces.par_sort_unstable_by_key(|f| f.0);
         // Deterministic order: by element, then local face.
-        let mut boundary: Vec<(usize, usize)> =
-            faces.values().filter(|(c, _, _)| *c == 1).map(|&(_, e, k)| (e, k)).collect();
+        let mut boundary: Vec<(usize, usize)> = faces
+            .chunk_by(|a, b| a.0 == b.0)
+            .filter(|run| run.len() == 1)
+            .map(|run| (run[0].1 as usize, run[0].2 as usize))
+            .collect();
         boundary.sort_unstable();
 
         let mut triangles = Vec::with_capacity(boundary.len() * 2);
