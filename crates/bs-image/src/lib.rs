@@ -15,6 +15,7 @@ mod error;
 pub mod extend;
 pub mod formats;
 mod grid;
+pub mod mask;
 mod mha;
 pub mod nifti;
 pub mod nrrd;

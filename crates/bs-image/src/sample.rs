@@ -11,42 +11,11 @@ pub fn trilinear_at(volume: &Volume<f32>, ijk: [f64; 3]) -> Option<f32> {
     if dims.iter().all(|&n| n >= 2) {
         return trilinear_3d(volume, dims, ijk);
     }
-    let mut base = [0usize; 3];
-    let mut frac = [0.0f64; 3];
-    for a in 0..3 {
-        let x = ijk[a];
-        let last = (dims[a] - 1) as f64;
-        if !(x >= -1e-9 && x <= last + 1e-9) {
-            return None;
-        }
-        let x = x.clamp(0.0, last);
-        let b = (x.floor() as usize).min(dims[a].saturating_sub(2));
-        base[a] = b;
-        frac[a] = if dims[a] == 1 { 0.0 } else { x - b as f64 };
-    }
-    let g = &volume.grid;
-    let step = [1usize, dims[0], dims[0] * dims[1]];
-    let i0 = g.index(base[0], base[1], base[2]);
-    let mut acc = 0.0f64;
-    for corner in 0..8usize {
-        let mut w = 1.0;
-        let mut idx = i0;
-        for a in 0..3 {
-            if corner >> a & 1 == 1 {
-                if dims[a] == 1 {
-                    w = 0.0;
-                } else {
-                    w *= frac[a];
-                    idx += step[a];
-                }
-            } else {
-                w *= 1.0 - frac[a];
-            }
-        }
-        if w != 0.0 {
-            acc += w * volume.data[idx] as f64;
-        }
-    }
+    let acc = corners(dims, ijk)?
+        .iter()
+        .filter(|(_, w)| *w != 0.0)
+        .map(|&(n, w)| w * f64::from(volume.data[n]))
+        .sum::<f64>();
     Some(acc as f32)
 }
 
@@ -116,33 +85,119 @@ pub fn nearest_excluding(
     radius: usize,
 ) -> u32 {
     let ijk = volume.grid.voxel(p);
+    let ok = |n: usize| excluded.binary_search(&volume.data[n]).is_err();
+    nearest_where(volume.grid.dims(), ijk, radius, ok).map_or(0, |n| volume.data[n])
+}
+
+/// Trilinear interpolation at world point `p` over the voxels flagged in `allowed` only:
+/// the weights of the others are dropped and the rest renormalised, so the value is a convex
+/// combination of allowed voxels. Where none of the eight corners with a weight is allowed,
+/// the value of the nearest allowed voxel within `radius` voxels along each axis (as
+/// [`nearest_excluding`] finds it). `None` when `p` lies outside the grid's voxel centres or
+/// no allowed voxel is that near. `allowed` is indexed like `volume.data`.
+pub fn trilinear_within(
+    volume: &Volume<f32>,
+    p: &Point3<f64>,
+    allowed: &[bool],
+    radius: usize,
+) -> Option<f32> {
+    let ijk = volume.grid.voxel(p);
     let dims = volume.grid.dims();
+    let (mut acc, mut sum) = (0.0f64, 0.0f64);
+    for (n, w) in corners(dims, ijk)? {
+        if w > 0.0 && allowed[n] {
+            acc += w * f64::from(volume.data[n]);
+            sum += w;
+        }
+    }
+    if sum > 0.0 {
+        return Some((acc / sum) as f32);
+    }
+    nearest_where(dims, ijk, radius, |n| allowed[n]).map(|n| volume.data[n])
+}
+
+/// The eight trilinear corners of continuous indices `ijk` with their weights (an axis of
+/// one voxel gives its upper corners weight zero); `None` outside the voxel centres.
+fn corners(dims: [usize; 3], ijk: [f64; 3]) -> Option<[(usize, f64); 8]> {
+    let mut base = [0usize; 3];
+    let mut frac = [0.0f64; 3];
+    for a in 0..3 {
+        let last = (dims[a] - 1) as f64;
+        let x = ijk[a];
+        if !(x >= -1e-9 && x <= last + 1e-9) {
+            return None;
+        }
+        let x = x.clamp(0.0, last);
+        base[a] = (x.floor() as usize).min(dims[a].saturating_sub(2));
+        frac[a] = if dims[a] == 1 { 0.0 } else { x - base[a] as f64 };
+    }
+    let step = [1usize, dims[0], dims[0] * dims[1]];
+    let i0 = base[0] + step[1] * base[1] + step[2] * base[2];
+    let mut out = [(i0, 0.0); 8];
+    for (corner, o) in out.iter_mut().enumerate() {
+        let mut w = 1.0;
+        for a in 0..3 {
+            if corner >> a & 1 == 1 {
+                if dims[a] == 1 {
+                    w = 0.0;
+                } else {
+                    w *= frac[a];
+                    o.0 += step[a];
+                }
+            } else {
+                w *= 1.0 - frac[a];
+            }
+        }
+        o.1 = w;
+    }
+    Some(out)
+}
+
+/// The linear index of the voxel nearest to continuous indices `ijk` for which `ok` holds,
+/// among those up to `radius` voxels away along each axis from the nearest centre (ties to
+/// the smallest index, the first in i-fastest order); `None` when there is none or `ijk`
+/// lies outside the grid. Searched in cube shells outwards, stopping once no farther shell
+/// can hold a nearer voxel, so a near hit costs a few voxels whatever the radius.
+fn nearest_where(
+    dims: [usize; 3],
+    ijk: [f64; 3],
+    radius: usize,
+    ok: impl Fn(usize) -> bool,
+) -> Option<usize> {
     let centre = ijk.map(|x| x.round());
     if (0..3).any(|a| !(centre[a] >= 0.0 && centre[a] <= (dims[a] - 1) as f64)) {
-        return 0;
+        return None;
     }
     let c = centre.map(|x| x as isize);
-    let r = radius as isize;
-    let mut best: Option<(f64, u32)> = None;
-    for dk in -r..=r {
-        for dj in -r..=r {
-            for di in -r..=r {
-                let q = [c[0] + di, c[1] + dj, c[2] + dk];
-                if (0..3).any(|a| q[a] < 0 || q[a] >= dims[a] as isize) {
-                    continue;
-                }
-                let v = volume.at(q[0] as usize, q[1] as usize, q[2] as usize);
-                if excluded.binary_search(&v).is_ok() {
-                    continue;
-                }
-                let d2: f64 = (0..3).map(|a| (q[a] as f64 - ijk[a]).powi(2)).sum();
-                if best.is_none_or(|(b, _)| d2 < b) {
-                    best = Some((d2, v));
+    let mut best: Option<(f64, usize)> = None;
+    for r in 0..=radius as isize {
+        // Every voxel of shell r is at least r − 1/2 from ijk (|ijk − centre| ≤ 1/2 per axis).
+        if best.is_some_and(|(d2, _)| (r as f64 - 0.5).powi(2) > d2) {
+            break;
+        }
+        for dk in -r..=r {
+            for dj in -r..=r {
+                for di in -r..=r {
+                    if di.abs().max(dj.abs()).max(dk.abs()) != r {
+                        continue;
+                    }
+                    let q = [c[0] + di, c[1] + dj, c[2] + dk];
+                    if (0..3).any(|a| q[a] < 0 || q[a] >= dims[a] as isize) {
+                        continue;
+                    }
+                    let n = q[0] as usize + dims[0] * (q[1] as usize + dims[1] * q[2] as usize);
+                    if !ok(n) {
+                        continue;
+                    }
+                    let d2: f64 = (0..3).map(|a| (q[a] as f64 - ijk[a]).powi(2)).sum();
+                    if best.is_none_or(|(b, m)| d2 < b || (d2 == b && n < m)) {
+                        best = Some((d2, n));
+                    }
                 }
             }
         }
     }
-    best.map_or(0, |(_, v)| v)
+    best.map(|(_, n)| n)
 }
 
 /// The labels (sorted) more than half of whose voxels are flagged in `inside`.
@@ -194,6 +249,54 @@ mod tests {
         assert!(trilinear_at(&v, [3.0 + 1e-10, 0.0, 0.0]).is_some());
         assert_eq!(trilinear_at(&v, [3.0 + 1e-6, 0.0, 0.0]), None);
         assert_eq!(trilinear_at(&v, [0.0, -1e-6, 0.0]), None);
+    }
+
+    #[test]
+    fn trilinear_within_renormalises_over_allowed_voxels_and_else_takes_the_nearest() {
+        // Arbitrary values on a 6 × 5 × 4 grid; voxels with i ≥ 3 are not allowed (think:
+        // the pre-operative brain). The reference is the hat-function sum restricted to the
+        // allowed voxels divided by the restricted weight, written out independently.
+        let dims = [6usize, 5, 4];
+        let grid = Grid::axis_aligned(dims, [2.0; 3], [-1.0, 0.5, 3.0]).unwrap();
+        let value = |i: usize, j: usize, k: usize| ((i * 11 + j * 5 + k * 23) % 13) as f32 + 1.0;
+        let n_of = |i: usize, j: usize, k: usize| i + 6 * (j + 5 * k);
+        let mut data = vec![0.0f32; 120];
+        let mut allowed = vec![false; 120];
+        for k in 0..4 {
+            for j in 0..5 {
+                for i in 0..6 {
+                    data[n_of(i, j, k)] = value(i, j, k);
+                    allowed[n_of(i, j, k)] = i < 3;
+                }
+            }
+        }
+        let v = Volume { grid: grid.clone(), data };
+        let hat = |x: f64, c: usize| (1.0 - (x - c as f64).abs()).max(0.0);
+        let world = |p: [f64; 3]| grid.world(p);
+        for p in [[0.5, 1.25, 2.0], [2.4, 3.5, 0.75], [2.9, 0.1, 2.6], [1.0, 4.0, 3.0]] {
+            let (mut acc, mut sum) = (0.0, 0.0);
+            for k in 0..4 {
+                for j in 0..5 {
+                    for i in 0..3 {
+                        let w = hat(p[0], i) * hat(p[1], j) * hat(p[2], k);
+                        acc += w * f64::from(value(i, j, k));
+                        sum += w;
+                    }
+                }
+            }
+            let got = trilinear_within(&v, &world(p), &allowed, 2).unwrap();
+            assert!((f64::from(got) - acc / sum).abs() < 1e-5, "{p:?}: {got} vs {}", acc / sum);
+            // Where every corner is allowed it is plain trilinear.
+            if p[0] <= 2.0 {
+                let plain = trilinear_at(&v, p).unwrap();
+                assert!((got - plain).abs() < 1e-5, "{p:?}: {got} vs {plain}");
+            }
+        }
+        // No allowed corner: the nearest allowed voxel (i = 2) within the radius, else none.
+        let p = world([3.6, 2.2, 1.0]);
+        assert_eq!(trilinear_within(&v, &p, &allowed, 2), Some(value(2, 2, 1)));
+        assert_eq!(trilinear_within(&v, &world([5.0, 2.0, 1.0]), &allowed, 2), None);
+        assert_eq!(trilinear_within(&v, &world([-0.5, 2.0, 1.0]), &allowed, 2), None);
     }
 
     #[test]
