@@ -30,7 +30,9 @@
 //! displacement to zero at the rigid skull, within a voxel. Where a brain that touched the
 //! skull moves away, the old gap had zero width: the vacated voxels all sample the old
 //! surface layer (det(I + ∇d) → 0). [`Folding`] reports det(I + ∇d) on the gap voxels: the
-//! count of voxels where it is ≤ 0 (the map folds) and its minimum.
+//! count of voxels where it is ≤ 0 (the map folds) and its minimum. The warp therefore
+//! samples a gap voxel beyond the skin from the voxels of the pre-operative gap only
+//! (`InverseMap::warp`); the map, and the exported field, stay as they are.
 
 use bs_image::Grid;
 use bs_image::extend::{ExtensionParams, Folding, harmonic_extension, indices_where, jacobian};
@@ -80,6 +82,9 @@ pub struct Outside {
     pub voxels: Vec<u32>,
     /// d(y) there (image frame, mm).
     pub values: Vec<[f64; 3]>,
+    /// Whether each gap voxel is on the skin (a face neighbour inside the deformed brain,
+    /// d the finite-element inverse continued across the surface).
+    pub skin: Vec<bool>,
     /// Per grid voxel: its place in `voxels` + 1, zero off the gap (only the pages that
     /// hold gap voxels are ever written).
     slot: Vec<u32>,
@@ -181,12 +186,19 @@ pub fn extend(
     // The gap: the skin and the harmonic voxels together, ascending (a merge of two sorted
     // lists); the skin's table becomes the gap's.
     let (voxels, values) = merge(&skin_values, &ext.voxels, &ext.values);
+    let mut skin = vec![false; voxels.len()];
+    for &(v, _) in &skin_values {
+        if let Ok(i) = voxels.binary_search(&v) {
+            skin[i] = true;
+        }
+    }
     for (s, &v) in voxels.iter().enumerate() {
         slot[v as usize] = s as u32 + 1;
     }
     Outside {
         voxels,
         values,
+        skin,
         slot,
         boundary,
         iterations: ext.iterations,
