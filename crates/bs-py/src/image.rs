@@ -3,6 +3,7 @@
 //! again. `Result.warp` and `Result.field` take one wherever they take a path.
 
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 
 use bs_image::{Grid, Volume};
 use numpy::PyArray2;
@@ -16,6 +17,30 @@ use crate::{affine, image_error, volume_array};
 pub(crate) struct Image {
     pub(crate) volume: Volume<f32>,
     pub(crate) path: PathBuf,
+    /// The pre-operative gap on this grid with the key of the maps it is for
+    /// (`InverseMap::preop_key`): a live session's updates share it.
+    gap: Mutex<Option<(u64, Gap)>>,
+}
+
+/// A pre-operative gap on an image's grid (None: the reference mesh could not be located
+/// there), shared by the maps that use it.
+type Gap = Arc<Option<Vec<bool>>>;
+
+impl Image {
+    /// The pre-operative gap of `map` on this image's grid, computed on the first ask for
+    /// the map's reference mesh and skull and kept for the next.
+    fn preop_gap(&self, map: &bs_scene::registration::InverseMap) -> Gap {
+        let key = map.preop_key();
+        let mut cache = self.gap.lock().unwrap_or_else(|e| e.into_inner());
+        match &*cache {
+            Some((k, gap)) if *k == key => gap.clone(),
+            _ => {
+                let gap = Arc::new(map.preop_gap(&self.volume.grid));
+                *cache = Some((key, gap.clone()));
+                gap
+            }
+        }
+    }
 }
 
 #[pymethods]
@@ -107,7 +132,10 @@ impl InverseMap {
                 i.path.display()
             )));
         }
-        let data = py.detach(|| self.map.warp(&i.volume, &i.volume.data));
+        let data = py.detach(|| {
+            let gap = i.preop_gap(&self.map);
+            self.map.warp_with_gap(&i.volume, &i.volume.data, gap.as_deref())
+        });
         volume_array(py, self.grid.dims(), data, 1)
     }
 
@@ -125,7 +153,7 @@ impl InverseMap {
 pub(crate) fn read_image(py: Python<'_>, path: PathBuf) -> PyResult<Image> {
     let (volume, _) =
         py.detach(|| bs_image::formats::read_image(&path)).map_err(|e| image_error(py, e))?;
-    Ok(Image { volume, path })
+    Ok(Image { volume, path, gap: Mutex::new(None) })
 }
 
 /// An image argument: a loaded [`Image`] or a path to read.

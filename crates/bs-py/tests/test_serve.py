@@ -468,8 +468,8 @@ def test_a_scene_without_the_set_or_image_is_refused_before_listening(fixtures, 
 
 
 def test_image_read_once_warps_as_the_file(fixtures):
-    r = Session(Scene.from_toml(fixtures / SCENE), threads=1).update(
-        displacements={"CRANIOTOMY": [0.0, 0.0, -3.0]})
+    session = Session(Scene.from_toml(fixtures / SCENE), threads=1)
+    r = session.update(displacements={"CRANIOTOMY": [0.0, 0.0, -3.0]})
     image = read_image(fixtures / IMAGE)
     a, affine_a = r.warp(image)
     b, affine_b = r.warp(fixtures / IMAGE)
@@ -477,6 +477,12 @@ def test_image_read_once_warps_as_the_file(fixtures):
     m = r.inverse_map(image)
     assert np.array_equal(m.warp(image), a) and np.array_equal(m.field(), r.field(image)[0])
     assert image.shape == a.shape and np.array_equal(image.affine, m.affine)
+    # The next update's map reuses the pre-operative gap the image keeps from the first
+    # (same reference mesh and skull): the same warp as the file read afresh.
+    r2 = session.update(displacements={"CRANIOTOMY": [0.0, 0.0, -5.0]})
+    b2, _ = r2.warp(fixtures / IMAGE)
+    assert not np.array_equal(b2, a)
+    assert np.array_equal(r2.inverse_map(image).warp(image), b2)
 
 
 def test_frames_landmark_pairing_and_displacement_rows():

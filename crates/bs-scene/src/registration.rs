@@ -499,6 +499,25 @@ impl InverseMap {
         )
     }
 
+    /// A key of what [`preop_gap`](Self::preop_gap) depends on besides the grid: the
+    /// reference nodes, the tetrahedra and the skull, hashed. Two maps with equal keys (the
+    /// updates of one live session) have equal gaps on one grid, so a front end can keep
+    /// the gap with the image.
+    pub fn preop_key(&self) -> u64 {
+        use std::hash::{Hash, Hasher};
+        let mut h = std::hash::DefaultHasher::new();
+        let point = |h: &mut std::hash::DefaultHasher, p: &Point3<f64>| {
+            p.coords.iter().for_each(|c| c.to_bits().hash(h))
+        };
+        self.reference.iter().for_each(|p| point(&mut h, p));
+        self.tets.hash(&mut h);
+        if let Some(s) = &self.skull {
+            s.vertices.iter().for_each(|p| point(&mut h, p));
+            s.triangles.hash(&mut h);
+        }
+        h.finish()
+    }
+
     /// Voxel centres of `grid` inside the reference (pre-operative) mesh; None when it cannot
     /// be located there (the deformed mesh was searchable, so the reference one is: a node
     /// moved onto another would have failed verification).
