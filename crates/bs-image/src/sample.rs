@@ -23,19 +23,7 @@ pub fn trilinear_at(volume: &Volume<f32>, ijk: [f64; 3]) -> Option<f32> {
 /// inner loop): three nested linear interpolations.
 #[inline]
 fn trilinear_3d(volume: &Volume<f32>, dims: [usize; 3], ijk: [f64; 3]) -> Option<f32> {
-    let mut base = [0usize; 3];
-    let mut f = [0.0f64; 3];
-    for a in 0..3 {
-        let last = (dims[a] - 1) as f64;
-        let x = ijk[a];
-        if !(x >= -1e-9 && x <= last + 1e-9) {
-            return None;
-        }
-        let x = x.clamp(0.0, last);
-        let b = (x as usize).min(dims[a] - 2);
-        base[a] = b;
-        f[a] = x - b as f64;
-    }
+    let (base, f) = cell(dims, ijk)?;
     let (sj, sk) = (dims[0], dims[0] * dims[1]);
     let i0 = base[0] + sj * base[1] + sk * base[2];
     let d = &volume.data[i0..i0 + sk + sj + 2];
@@ -116,9 +104,11 @@ pub fn trilinear_within(
     nearest_where(dims, ijk, radius, |n| allowed[n]).map(|n| volume.data[n])
 }
 
-/// The eight trilinear corners of continuous indices `ijk` with their weights (an axis of
-/// one voxel gives its upper corners weight zero); `None` outside the voxel centres.
-fn corners(dims: [usize; 3], ijk: [f64; 3]) -> Option<[(usize, f64); 8]> {
+/// The interpolation cell of continuous indices `ijk`: its lowest corner and the fractions
+/// along each axis (zero along an axis of one voxel); `None` outside the voxel centres (a
+/// point within 1e-9 voxel of the last centre counts inside).
+#[inline]
+fn cell(dims: [usize; 3], ijk: [f64; 3]) -> Option<([usize; 3], [f64; 3])> {
     let mut base = [0usize; 3];
     let mut frac = [0.0f64; 3];
     for a in 0..3 {
@@ -128,9 +118,16 @@ fn corners(dims: [usize; 3], ijk: [f64; 3]) -> Option<[(usize, f64); 8]> {
             return None;
         }
         let x = x.clamp(0.0, last);
-        base[a] = (x.floor() as usize).min(dims[a].saturating_sub(2));
+        base[a] = (x as usize).min(dims[a].saturating_sub(2));
         frac[a] = if dims[a] == 1 { 0.0 } else { x - base[a] as f64 };
     }
+    Some((base, frac))
+}
+
+/// The eight trilinear corners of continuous indices `ijk` with their weights (an axis of
+/// one voxel gives its upper corners weight zero); `None` outside the voxel centres.
+fn corners(dims: [usize; 3], ijk: [f64; 3]) -> Option<[(usize, f64); 8]> {
+    let (base, frac) = cell(dims, ijk)?;
     let step = [1usize, dims[0], dims[0] * dims[1]];
     let i0 = base[0] + step[1] * base[1] + step[2] * base[2];
     let mut out = [(i0, 0.0); 8];
