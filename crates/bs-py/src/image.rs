@@ -27,6 +27,23 @@ pub(crate) struct Image {
 type Gap = Arc<Option<Vec<bool>>>;
 
 impl Image {
+    /// This image warped by `result` (as `bs_scene::registration::warp_loaded`), through
+    /// the pre-operative gap this image keeps.
+    pub(crate) fn warp(
+        &self,
+        result: &bs_scene::registration::RunResult,
+    ) -> Result<Volume<f32>, bs_scene::SceneError> {
+        let map = bs_scene::registration::InverseMap::new(
+            result,
+            &self.volume.grid,
+            bs_image::Space::Ras,
+            &self.path,
+        )?;
+        let gap = self.preop_gap(&map);
+        let data = map.warp_with_gap(&self.volume, &self.volume.data, gap.as_deref());
+        Ok(Volume { grid: self.volume.grid.clone(), data })
+    }
+
     /// The pre-operative gap of `map` on this image's grid, computed on the first ask for
     /// the map's reference mesh and skull and kept for the next.
     fn preop_gap(&self, map: &bs_scene::registration::InverseMap) -> Gap {

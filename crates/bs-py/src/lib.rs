@@ -613,9 +613,9 @@ impl RunResult {
                     "labels=True reads the labelmap itself: pass its path, not an Image",
                 ));
             }
-            (ImageArg::Loaded(i), false) => py
-                .detach(|| bs_scene::registration::warp_loaded(&result, &i.volume, &i.path))
-                .map_err(|e| scene_err(py, e))?,
+            (ImageArg::Loaded(i), false) => {
+                py.detach(|| i.warp(&result)).map_err(|e| scene_err(py, e))?
+            }
             (ImageArg::File(p), false) => py
                 .detach(|| bs_scene::registration::warp_volume(&result, p))
                 .map_err(|e| scene_err(py, e))?,

@@ -483,6 +483,7 @@ def test_image_read_once_warps_as_the_file(fixtures):
     b2, _ = r2.warp(fixtures / IMAGE)
     assert not np.array_equal(b2, a)
     assert np.array_equal(r2.inverse_map(image).warp(image), b2)
+    assert np.array_equal(r2.warp(image)[0], b2)
 
 
 def test_frames_landmark_pairing_and_displacement_rows():
