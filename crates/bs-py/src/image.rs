@@ -47,6 +47,9 @@ impl Image {
     /// The pre-operative gap of `map` on this image's grid, computed on the first ask for
     /// the map's reference mesh and skull and kept for the next.
     fn preop_gap(&self, map: &bs_scene::registration::InverseMap) -> Gap {
+        if map.gap_voxels().is_empty() {
+            return Arc::new(None); // nothing between brain and skull samples it
+        }
         let key = map.preop_key();
         let mut cache = self.gap.lock().unwrap_or_else(|e| e.into_inner());
         match &*cache {
