@@ -2,7 +2,7 @@
 
 use nalgebra::Point3;
 
-use crate::Volume;
+use crate::{Grid, Volume};
 
 /// Trilinear interpolation at continuous voxel indices; `None` outside the grid's voxel
 /// centres (no extrapolation). A point within 1e-9 voxel of the last centre counts inside.
@@ -77,31 +77,27 @@ pub fn nearest_excluding(
     nearest_where(volume.grid.dims(), ijk, radius, ok).map_or(0, |n| volume.data[n])
 }
 
-/// Trilinear interpolation at world point `p` over the voxels flagged in `allowed` only:
-/// the weights of the others are dropped and the rest renormalised, so the value is a convex
-/// combination of allowed voxels. Where none of the eight corners with a weight is allowed,
-/// the value of the nearest allowed voxel within `radius` voxels along each axis (as
-/// [`nearest_excluding`] finds it). `None` when `p` lies outside the grid's voxel centres or
-/// no allowed voxel is that near. `allowed` is indexed like `volume.data`.
-pub fn trilinear_within(
-    volume: &Volume<f32>,
-    p: &Point3<f64>,
-    allowed: &[bool],
-    radius: usize,
-) -> Option<f32> {
-    let ijk = volume.grid.voxel(p);
-    let dims = volume.grid.dims();
-    let (mut acc, mut sum) = (0.0f64, 0.0f64);
-    for (n, w) in corners(dims, ijk)? {
-        if w > 0.0 && allowed[n] {
-            acc += w * f64::from(volume.data[n]);
-            sum += w;
-        }
+/// Where a trilinear sample at world point `p` on `grid` reads the voxels flagged in
+/// `allowed` only: `p` itself when every corner of its cell with a weight is allowed (or
+/// when `p` lies outside the grid's voxel centres, where there is nothing to sample), else
+/// the centre of the nearest allowed voxel within `radius` voxels along each axis (as
+/// [`nearest_excluding`] finds it; a sample there is that voxel's value), else `p`.
+/// `allowed` is indexed like the grid's voxels (i fastest).
+pub fn settle_within(grid: &Grid, p: &Point3<f64>, allowed: &[bool], radius: usize) -> Point3<f64> {
+    let ijk = grid.voxel(p);
+    let dims = grid.dims();
+    let Some(corners) = corners(dims, ijk) else { return *p };
+    if corners.iter().all(|&(n, w)| w == 0.0 || allowed[n]) {
+        return *p;
     }
-    if sum > 0.0 {
-        return Some((acc / sum) as f32);
-    }
-    nearest_where(dims, ijk, radius, |n| allowed[n]).map(|n| volume.data[n])
+    let centre = |n: usize| {
+        grid.world([
+            (n % dims[0]) as f64,
+            ((n / dims[0]) % dims[1]) as f64,
+            (n / (dims[0] * dims[1])) as f64,
+        ])
+    };
+    nearest_where(dims, ijk, radius, |n| allowed[n]).map_or(*p, centre)
 }
 
 /// The interpolation cell of continuous indices `ijk`: its lowest corner and the fractions
@@ -249,51 +245,38 @@ mod tests {
     }
 
     #[test]
-    fn trilinear_within_renormalises_over_allowed_voxels_and_else_takes_the_nearest() {
-        // Arbitrary values on a 6 × 5 × 4 grid; voxels with i ≥ 3 are not allowed (think:
-        // the pre-operative brain). The reference is the hat-function sum restricted to the
-        // allowed voxels divided by the restricted weight, written out independently.
+    fn a_point_settles_where_its_sample_reads_allowed_voxels_only() {
+        // A 6 × 5 × 4 grid (spacing 2 mm, shifted origin); voxels with i ≥ 3 are not
+        // allowed (think: the pre-operative brain). Expected by hand: a point whose cell has
+        // a weighted corner at i ≥ 3 moves to the centre of the nearest voxel with i ≤ 2.
         let dims = [6usize, 5, 4];
         let grid = Grid::axis_aligned(dims, [2.0; 3], [-1.0, 0.5, 3.0]).unwrap();
-        let value = |i: usize, j: usize, k: usize| ((i * 11 + j * 5 + k * 23) % 13) as f32 + 1.0;
-        let n_of = |i: usize, j: usize, k: usize| i + 6 * (j + 5 * k);
-        let mut data = vec![0.0f32; 120];
-        let mut allowed = vec![false; 120];
-        for k in 0..4 {
-            for j in 0..5 {
-                for i in 0..6 {
-                    data[n_of(i, j, k)] = value(i, j, k);
-                    allowed[n_of(i, j, k)] = i < 3;
-                }
-            }
-        }
-        let v = Volume { grid: grid.clone(), data };
-        let hat = |x: f64, c: usize| (1.0 - (x - c as f64).abs()).max(0.0);
+        let allowed: Vec<bool> = (0..120).map(|n| n % 6 < 3).collect();
         let world = |p: [f64; 3]| grid.world(p);
-        for p in [[0.5, 1.25, 2.0], [2.4, 3.5, 0.75], [2.9, 0.1, 2.6], [1.0, 4.0, 3.0]] {
-            let (mut acc, mut sum) = (0.0, 0.0);
-            for k in 0..4 {
-                for j in 0..5 {
-                    for i in 0..3 {
-                        let w = hat(p[0], i) * hat(p[1], j) * hat(p[2], k);
-                        acc += w * f64::from(value(i, j, k));
-                        sum += w;
-                    }
-                }
-            }
-            let got = trilinear_within(&v, &world(p), &allowed, 2).unwrap();
-            assert!((f64::from(got) - acc / sum).abs() < 1e-5, "{p:?}: {got} vs {}", acc / sum);
-            // Where every corner is allowed it is plain trilinear.
-            if p[0] <= 2.0 {
-                let plain = trilinear_at(&v, p).unwrap();
-                assert!((got - plain).abs() < 1e-5, "{p:?}: {got} vs {plain}");
-            }
+        let close = |a: Point3<f64>, b: Point3<f64>| (a - b).norm() < 1e-9;
+        // Every weighted corner allowed (i ≤ 2, or i = 2 exactly with no weight beyond):
+        // the point itself.
+        for p in [[0.5, 1.25, 2.0], [1.9, 3.5, 0.75], [2.0, 0.1, 2.6]] {
+            assert!(close(settle_within(&grid, &world(p), &allowed, 2), world(p)), "{p:?}");
         }
-        // No allowed corner: the nearest allowed voxel (i = 2) within the radius, else none.
-        let p = world([3.6, 2.2, 1.0]);
-        assert_eq!(trilinear_within(&v, &p, &allowed, 2), Some(value(2, 2, 1)));
-        assert_eq!(trilinear_within(&v, &world([5.0, 2.0, 1.0]), &allowed, 2), None);
-        assert_eq!(trilinear_within(&v, &world([-0.5, 2.0, 1.0]), &allowed, 2), None);
+        // A corner at i = 3 carries weight: the nearest allowed centre, i = 2, j and k
+        // rounded.
+        let got = settle_within(&grid, &world([2.4, 3.4, 0.75]), &allowed, 2);
+        assert!(close(got, world([2.0, 3.0, 1.0])), "{got:?}");
+        // No allowed voxel within one voxel: the nearest two voxels away.
+        let got = settle_within(&grid, &world([3.6, 2.2, 1.0]), &allowed, 2);
+        assert!(close(got, world([2.0, 2.0, 1.0])), "{got:?}");
+        // None within the radius, or outside the grid: unchanged.
+        let far = world([5.0, 2.0, 1.0]);
+        assert!(close(settle_within(&grid, &far, &allowed, 2), far));
+        let out = world([-0.5, 2.0, 1.0]);
+        assert!(close(settle_within(&grid, &out, &allowed, 2), out));
+        // A sample at the settled point is the voxel's value, as ITK's would be there.
+        let data: Vec<f32> = (0..120).map(|n| (n % 13) as f32).collect();
+        let v = Volume { grid: grid.clone(), data };
+        let got = settle_within(&grid, &world([3.6, 2.2, 1.0]), &allowed, 2);
+        let n = 2 + 6 * (2 + 5);
+        assert!((trilinear(&v, &got).unwrap() - v.data[n]).abs() < 1e-5);
     }
 
     #[test]

@@ -44,6 +44,22 @@ impl Image {
         Ok(Volume { grid: self.volume.grid.clone(), data })
     }
 
+    /// The displacement field of `result` on this image's grid (as
+    /// `bs_scene::registration::field_on`), through the pre-operative gap this image keeps.
+    pub(crate) fn field(
+        &self,
+        result: &bs_scene::registration::RunResult,
+    ) -> Result<Volume<[f32; 3]>, bs_scene::SceneError> {
+        let map = bs_scene::registration::InverseMap::new(
+            result,
+            &self.volume.grid,
+            bs_image::Space::Ras,
+            &self.path,
+        )?;
+        let gap = self.preop_gap(&map);
+        Ok(Volume { grid: self.volume.grid.clone(), data: map.field_with_gap(gap.as_deref()) })
+    }
+
     /// The pre-operative gap of `map` on this image's grid, computed on the first ask for
     /// the map's reference mesh and skull and kept for the next.
     fn preop_gap(&self, map: &bs_scene::registration::InverseMap) -> Gap {
@@ -101,6 +117,9 @@ impl Image {
 pub(crate) struct InverseMap {
     pub(crate) map: bs_scene::registration::InverseMap,
     pub(crate) grid: Grid,
+    /// The pre-operative gap on the grid, from the image `warp` was given (an image keeps
+    /// it for a session's maps) or computed by the first `field()`.
+    pub(crate) gap: std::sync::OnceLock<Gap>,
 }
 
 #[pymethods]
@@ -153,16 +172,22 @@ impl InverseMap {
             )));
         }
         let data = py.detach(|| {
-            let gap = i.preop_gap(&self.map);
+            let gap = self.gap.get_or_init(|| i.preop_gap(&self.map));
             self.map.warp_with_gap(&i.volume, &i.volume.data, gap.as_deref())
         });
         volume_array(py, self.grid.dims(), data, 1)
     }
 
     /// The displacement field d(y) = X(y) − y on the grid: float32 (nx, ny, nz, 3), RAS
-    /// mm, as `Result.field`.
+    /// mm, as `Result.field`; resampling the image through it gives `warp`'s image.
     fn field<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let data: Vec<f32> = py.detach(|| self.map.field().into_iter().flatten().collect());
+        let data: Vec<f32> = py.detach(|| {
+            let gap = self.gap.get_or_init(|| {
+                let none = self.map.gap_voxels().is_empty();
+                Arc::new(if none { None } else { self.map.preop_gap(&self.grid) })
+            });
+            self.map.field_with_gap(gap.as_deref()).into_iter().flatten().collect()
+        });
         volume_array(py, self.grid.dims(), data, 3)
     }
 }

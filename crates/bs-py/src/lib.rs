@@ -634,10 +634,14 @@ impl RunResult {
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray2<f64>>)> {
         let result = self.registration(py)?;
         let reference = ImageArg::of(reference)?;
-        let grid = reference.grid(py)?;
-        let v = py
-            .detach(|| bs_scene::registration::field_on(&result, &grid, reference.path()))
-            .map_err(|e| scene_err(py, e))?;
+        let v = match &reference {
+            ImageArg::Loaded(i) => py.detach(|| i.field(&result)),
+            ImageArg::File(p) => {
+                let grid = reference.grid(py)?;
+                py.detach(|| bs_scene::registration::field_on(&result, &grid, p))
+            }
+        }
+        .map_err(|e| scene_err(py, e))?;
         let data: Vec<f32> = v.data.iter().flatten().copied().collect();
         Ok((volume_array(py, v.grid.dims(), data, 3)?, affine(py, v.grid.voxel_to_world())))
     }
@@ -655,7 +659,7 @@ impl RunResult {
                 bs_scene::registration::InverseMap::new(&result, &grid, bs_image::Space::Ras, &path)
             })
             .map_err(|e| scene_err(py, e))?;
-        Ok(image::InverseMap { map, grid })
+        Ok(image::InverseMap { map, grid, gap: std::sync::OnceLock::new() })
     }
 
     /// The deformed boundary surface of the brain (every element's free faces, oriented

@@ -433,17 +433,10 @@ impl InverseMap {
     /// the deformed mesh; every other voxel keeps the value of `keep` (the input on the same
     /// grid), as does a voxel whose X(y) falls outside `image`.
     ///
-    /// In the gap to the skull, beyond the skin (the layer of voxels touching the deformed
-    /// brain, which samples plainly and keeps the brain's edge), a voxel shows what filled
-    /// the pre-operative gap, never the pre-operative brain or bone: the trilinear sample at
-    /// X(y) over the voxels of [`preop_gap`](Self::preop_gap) only (the other corners'
-    /// weights dropped, the rest renormalised), else the nearest such voxel within
-    /// [`GAP_SEARCH_VOXELS`], else the plain trilinear sample. Where the old gap was thin
-    /// (the brain touched the skull and moved away) X(y) lands on the old surface layer or
-    /// across it (`crate::outside`), and the plain sample stretched the old cortex over the
-    /// vacated voxels (spikes of one to three voxels above the MNI152 demo's craniotomy).
-    /// The exported [`field`](Self::field) is the map itself: resampling through it (ITK,
-    /// Slicer) gives the plain sample on those voxels.
+    /// In the gap to the skull a voxel samples at the point [`field`](Self::field) gives it
+    /// (see [`gap_points`](Self::gap_points)): beyond the skin never the pre-operative
+    /// brain or bone, so the warp equals resampling through the exported field (ITK,
+    /// Slicer) on the map's grid.
     pub fn warp(&self, image: &Volume<f32>, keep: &[f32]) -> Vec<f32> {
         let gap = self.outside.as_ref().and_then(|_| self.preop_gap(&image.grid));
         self.warp_with_gap(image, keep, gap.as_deref())
@@ -462,19 +455,40 @@ impl InverseMap {
         let mut out = self
             .location
             .map_inside(Some(keep), &maps, |s| bs_image::sample::trilinear_at(image, s));
-        self.resample_gap_within(&mut out, image, gap);
+        let points = self.gap_points(gap.map(|g| (&image.grid, g)));
+        self.resample_gap(&mut out, &points, |x| bs_image::sample::trilinear(image, x));
         out
     }
 
-    /// The gap voxels of `out` sampled from `image`: the skin plainly, the others from the
-    /// pre-operative `gap` only (see [`warp`](Self::warp)).
-    fn resample_gap_within(&self, out: &mut [f32], image: &Volume<f32>, gap: Option<&[bool]>) {
-        let Some(o) = &self.outside else { return };
-        self.resample_gap(out, |i, x| {
-            gap.filter(|_| !o.skin[i])
-                .and_then(|g| bs_image::sample::trilinear_within(image, x, g, GAP_SEARCH_VOXELS))
-                .or_else(|| bs_image::sample::trilinear(image, x))
-        });
+    /// The points X(y) the gap voxels sample, in the order of
+    /// [`gap_voxels`](Self::gap_voxels): y + d(y) (the harmonic extension), except beyond
+    /// the skin (the layer of gap voxels touching the deformed brain, which keeps the
+    /// brain's edge) where a trilinear sample at y + d(y) on the grid of `gap` (the
+    /// [`preop_gap`](Self::preop_gap) on it) would read a voxel outside the pre-operative
+    /// gap: there X(y) is the centre of the nearest voxel of that gap within
+    /// [`GAP_SEARCH_VOXELS`] ([`bs_image::sample::settle_within`]), else y + d(y). So a voxel
+    /// in the space the brain left shows what filled the old gap, never the old brain or
+    /// bone: where the old gap was thin (the brain touched the skull and moved away) the
+    /// extension sends the vacated voxels onto the old surface layer or across it
+    /// ([`crate::outside`]), and a plain sample stretched the old cortex over them (spikes
+    /// of one to three voxels above the MNI152 demo's craniotomy). `gap` None: y + d(y)
+    /// everywhere.
+    pub fn gap_points(&self, gap: Option<(&Grid, &[bool])>) -> Vec<Point3<f64>> {
+        let Some(o) = &self.outside else { return Vec::new() };
+        o.voxels
+            .par_iter()
+            .zip(&o.values)
+            .zip(&o.skin)
+            .map(|((&n, d), &skin)| {
+                let x = self.voxel_centre(n as usize) + Vector3::from(*d);
+                match gap {
+                    Some((grid, g)) if !skin => {
+                        bs_image::sample::settle_within(grid, &x, g, GAP_SEARCH_VOXELS)
+                    }
+                    _ => x,
+                }
+            })
+            .collect()
     }
 
     /// The pre-operative gap on `grid`: voxels inside the skull cavity (anywhere, for a
@@ -545,7 +559,8 @@ impl InverseMap {
             .map_inside(Some(keep), &maps, |s| bs_image::sample::nearest_at(labels, s));
         if self.outside.is_some() {
             let brain = self.brain_labels(labels);
-            self.resample_gap(&mut out, |_, x| {
+            let points = self.gap_points(None);
+            self.resample_gap(&mut out, &points, |x| {
                 Some(bs_image::sample::nearest_excluding(labels, x, &brain, GAP_SEARCH_VOXELS))
             });
         }
@@ -559,32 +574,37 @@ impl InverseMap {
         })
     }
 
-    /// `out` with every gap voxel replaced by `sample(i, y + d(y))` (where it has a value),
-    /// `i` its place in the gap's list: sampled in parallel, written in order.
+    /// `out` with every gap voxel replaced by `sample(x)` at its point `x` of `points` (in
+    /// the order of [`gap_voxels`](Self::gap_voxels)) where it has a value: sampled in
+    /// parallel, written in order.
     fn resample_gap<T: Copy + Send>(
         &self,
         out: &mut [T],
-        sample: impl Fn(usize, &Point3<f64>) -> Option<T> + Sync,
+        points: &[Point3<f64>],
+        sample: impl Fn(&Point3<f64>) -> Option<T> + Sync,
     ) {
-        let Some(o) = &self.outside else { return };
-        let samples: Vec<Option<T>> = o
-            .voxels
-            .par_iter()
-            .zip(&o.values)
-            .enumerate()
-            .map(|(i, (&n, d))| sample(i, &(self.voxel_centre(n as usize) + Vector3::from(*d))))
-            .collect();
-        for (&n, v) in o.voxels.iter().zip(samples) {
+        let samples: Vec<Option<T>> = points.par_iter().map(|x| sample(x)).collect();
+        for (&n, v) in self.gap_voxels().iter().zip(samples) {
             if let Some(v) = v {
                 out[n as usize] = v;
             }
         }
     }
 
-    /// The displacement field d(y) = X(y) − y on this grid (image frame, mm): the exact
-    /// inverse inside the deformed mesh, the extension in the gap, zero beyond the skull;
-    /// voxel order `i + nx (j + ny k)`.
+    /// The displacement field d(y) = X(y) − y on this grid (image frame, mm), the map
+    /// [`warp`](Self::warp) samples through: the exact inverse inside the deformed mesh, in
+    /// the gap the points of [`gap_points`](Self::gap_points) with the pre-operative gap on
+    /// this grid, zero beyond the skull; voxel order `i + nx (j + ny k)`. Resampling an
+    /// image on this grid through it (ITK, Slicer: trilinear) gives [`warp`](Self::warp)'s
+    /// image.
     pub fn field(&self) -> Vec<[f32; 3]> {
+        let gap = if self.gap_voxels().is_empty() { None } else { self.preop_gap(&self.grid) };
+        self.field_with_gap(gap.as_deref())
+    }
+
+    /// [`field`](Self::field) with the pre-operative gap on this map's grid given (None: the
+    /// harmonic extension y + d(y) in the whole gap, as [`harmonic_field`](Self::harmonic_field)).
+    pub fn field_with_gap(&self, gap: Option<&[bool]>) -> Vec<[f32; 3]> {
         // d = X(y) − y: the interpolant of X minus the grid's index-to-world map.
         let to_world = self.grid.voxel_to_world();
         let maps: Vec<TetAffine> = self
@@ -594,12 +614,19 @@ impl InverseMap {
             .map(|a| a.minus(to_world))
             .collect();
         let mut out = self.location.map_inside(None, &maps, |d| Some(d.map(|c| c as f32)));
-        if let Some(o) = &self.outside {
-            for (&n, d) in o.voxels.iter().zip(&o.values) {
-                out[n as usize] = d.map(|c| c as f32);
-            }
+        let points = self.gap_points(gap.map(|g| (&self.grid, g)));
+        for (&n, x) in self.gap_voxels().iter().zip(&points) {
+            let d = x - self.voxel_centre(n as usize);
+            out[n as usize] = [d.x as f32, d.y as f32, d.z as f32];
         }
         out
+    }
+
+    /// The map with the harmonic extension y + d(y) in the whole gap (continuous; what
+    /// [`outside_report`](Self::outside_report)'s fold count measures and the preview's
+    /// |d| shows), as a displacement field like [`field`](Self::field).
+    pub fn harmonic_field(&self) -> Vec<[f32; 3]> {
+        self.field_with_gap(None)
     }
 }
 
@@ -738,7 +765,13 @@ fn resample_and_write<T: Copy>(
             data: v.data.iter().map(&grey).collect(),
         };
         let in_brain = |n: usize| map.reference_point(n).is_some();
-        crate::planes::planes(map.grid(), &in_brain, &f(volume), &f(&warped).data, &map.field())
+        crate::planes::planes(
+            map.grid(),
+            &in_brain,
+            &f(volume),
+            &f(&warped).data,
+            &map.harmonic_field(),
+        )
     });
     Ok(Summary {
         out: out.to_path_buf(),

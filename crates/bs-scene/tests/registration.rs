@@ -90,6 +90,9 @@ fn check_affine(a: Matrix3<f64>, b: Vector3<f64>, tets: bool) {
     let warped = map.warp(&image, &image.data);
     let field = map.field();
     let a_inv = a.try_inverse().unwrap();
+    // The largest nodal displacement: how far a gap voxel's point may move to the old gap.
+    let max_shift =
+        mesh.nodes.iter().map(|p| (a * p.coords + b - p.coords).norm()).fold(0.0, f64::max);
     // The pre-operative gap in closed form: outside the reference box, and no face
     // neighbour inside it.
     let in_reference = |m: usize| {
@@ -136,6 +139,18 @@ fn check_affine(a: Matrix3<f64>, b: Vector3<f64>, tets: bool) {
                 match map.mapped_point(n) {
                     // In the band around the box (no skull here): y + d(y), d extended.
                     Some(x) => {
+                        // The skin (a face neighbour inside the deformed box) samples at
+                        // y + d(y); beyond it, where the trilinear cell of y + d(y) holds a
+                        // voxel outside the old gap (the voxels that neither lie in the
+                        // reference box nor touch it across a face), the nearest old-gap
+                        // voxel's centre. The field is that point minus y, and the warp the
+                        // plain sample there: what ITK resampling through the field gives.
+                        let skin = neighbours(&g, n).any(|m| map.reference_point(m).is_some());
+                        let x = if skin {
+                            x
+                        } else {
+                            bs_image::sample::settle_within(&g, &x, &old_gap, GAP_SEARCH_VOXELS)
+                        };
                         let d = x - y;
                         let f = Vector3::new(
                             field[n][0] as f64,
@@ -143,22 +158,7 @@ fn check_affine(a: Matrix3<f64>, b: Vector3<f64>, tets: bool) {
                             field[n][2] as f64,
                         );
                         assert!((f - d).norm() < 1e-5, "voxel {n}");
-                        // The skin (a face neighbour inside the deformed box) samples
-                        // plainly; beyond it only the old gap is sampled: the voxels that
-                        // neither lie in the reference box nor touch it across a face.
-                        let plain = bs_image::sample::trilinear(&image, &x);
-                        let skin = neighbours(&g, n).any(|m| map.reference_point(m).is_some());
-                        let expect = if skin {
-                            plain
-                        } else {
-                            bs_image::sample::trilinear_within(
-                                &image,
-                                &x,
-                                &old_gap,
-                                GAP_SEARCH_VOXELS,
-                            )
-                            .or(plain)
-                        };
+                        let expect = bs_image::sample::trilinear(&image, &x);
                         let expect = expect.unwrap_or(image.data[n]);
                         assert!((warped[n] - expect).abs() < 1e-3, "voxel {n}");
                     }
@@ -436,9 +436,17 @@ fn simpleitk_applying_the_exported_fields_gives_the_warp() {
         assert!(mad <= 0.01 * range, "{name}: mean |difference| {mad} vs range {range}");
         let everywhere = compare(&ours.data, &theirs.data, &vec![true; mask.len()]);
         assert!(everywhere <= 0.01 * range, "{name}: outside the brain too ({everywhere})");
+        // Voxel by voxel, the gap included: the warp samples where the field points (beyond
+        // the skin, the pre-operative gap's voxel centres). What is left is the f32 field's
+        // rounding (the MetaImage and NRRD vectors also go through LPS): 1.1e-3 measured,
+        // bound 1e-4 of the range. Until the field carried the warp's gap rule SimpleITK
+        // differed by up to 681 on 1168 gap voxels.
+        let worst =
+            ours.data.iter().zip(&theirs.data).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+        assert!((worst as f64) <= 1e-4 * range, "{name}: {worst} at worst");
         eprintln!(
             "{name}: mean |ours − SimpleITK| {mad:.3e} inside the brain, {everywhere:.3e} over \
-             the whole image, range {range}, warp moved {moved:.3}"
+             the whole image, at most {worst:.3e}, range {range}, warp moved {moved:.3}"
         );
     }
     let _ = std::fs::remove_dir_all(&d);
