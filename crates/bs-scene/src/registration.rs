@@ -583,7 +583,7 @@ impl InverseMap {
         points: &[Point3<f64>],
         sample: impl Fn(&Point3<f64>) -> Option<T> + Sync,
     ) {
-        let samples: Vec<Option<T>> = points.par_iter().map(|x| sample(x)).collect();
+        let samples: Vec<Option<T>> = points.par_iter().map(&sample).collect();
         for (&n, v) in self.gap_voxels().iter().zip(samples) {
             if let Some(v) = v {
                 out[n as usize] = v;

@@ -90,9 +90,6 @@ fn check_affine(a: Matrix3<f64>, b: Vector3<f64>, tets: bool) {
     let warped = map.warp(&image, &image.data);
     let field = map.field();
     let a_inv = a.try_inverse().unwrap();
-    // The largest nodal displacement: how far a gap voxel's point may move to the old gap.
-    let max_shift =
-        mesh.nodes.iter().map(|p| (a * p.coords + b - p.coords).norm()).fold(0.0, f64::max);
     // The pre-operative gap in closed form: outside the reference box, and no face
     // neighbour inside it.
     let in_reference = |m: usize| {
