@@ -130,6 +130,15 @@ impl InverseMap {
         affine(py, self.grid.voxel_to_world())
     }
 
+    /// Voxels whose centre lies inside the deformed brain, where the map is the exact
+    /// inverse of the finite-element map (elsewhere the extension to the skull, or zero):
+    /// bool (nx, ny, nz).
+    #[getter]
+    fn inside<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let mask = py.detach(|| self.map.inside_mask());
+        volume_array(py, self.grid.dims(), mask, 1)
+    }
+
     /// Conjugate-gradient iterations of the extension between brain and skull (0 without
     /// a skull or a gap).
     #[getter]

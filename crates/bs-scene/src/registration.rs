@@ -334,8 +334,7 @@ impl InverseMap {
                 triangles: s.triangles.clone(),
             });
             let cavity = map.skull.as_ref().map(|s| cavity(s, grid));
-            let in_brain: Vec<bool> =
-                map.location.owners().par_iter().map(|&o| o != OUTSIDE).collect();
+            let in_brain = map.inside_mask();
             let outside = crate::outside::extend(
                 grid,
                 &in_brain,
@@ -416,6 +415,12 @@ impl InverseMap {
         &self.grid
     }
 
+    /// Whether each voxel centre lies inside the deformed mesh, where the map is the exact
+    /// inverse of the finite-element map (voxel order `i + nx (j + ny k)`).
+    pub fn inside_mask(&self) -> Vec<bool> {
+        self.location.owners().par_iter().map(|&o| o != OUTSIDE).collect()
+    }
+
     /// Voxel centres inside the deformed mesh.
     pub fn inside_count(&self) -> usize {
         self.location.inside_count()
@@ -492,25 +497,55 @@ impl InverseMap {
     }
 
     /// The pre-operative gap on `grid`: voxels inside the skull cavity (anywhere, for a
-    /// scene without a skull) that neither lie in the reference (pre-operative) mesh nor
-    /// touch it across a face. A voxel whose centre lies just outside the mesh still holds
-    /// brain: a mesh made from a segmentation passes within a voxel of its boundary (the
-    /// MNI152 demo's top surface runs 0.1–0.5 mm below the centres of the mask's top
-    /// voxels, which hold cortex). None when the reference mesh cannot be located on `grid`.
+    /// scene without a skull) whose centre lies neither in the reference (pre-operative)
+    /// mesh nor within [`BRAIN_MARGIN_MM`] plus half a voxel of it along a grid axis (at
+    /// most a voxel: on a grid of 1 mm, no face neighbour in the mesh). Such a voxel holds
+    /// no brain: a voxel's content reaches half a voxel from its centre, and a mesh made
+    /// from a segmentation runs within that margin of its mask's voxel centres (the MNI152
+    /// demo's top surface 0.1–0.5 mm below the centres of the mask's top voxels, which
+    /// hold cortex). None when the reference mesh cannot be located on `grid`.
     pub fn preop_gap(&self, grid: &Grid) -> Option<Vec<bool>> {
-        let brain = self.reference_inside(grid)?;
+        let near = self.near_reference(grid)?;
         let cavity = self.skull.as_ref().map(|s| cavity(s, grid));
-        let dims = grid.dims();
         Some(
-            (0..grid.len())
-                .into_par_iter()
+            near.par_iter()
+                .enumerate()
                 .with_min_len(4096)
-                .map(|n| {
-                    cavity.as_ref().is_none_or(|c| c[n])
-                        && !bs_image::mask::touches(&brain, dims, n)
-                })
+                .map(|(n, &near)| !near && cavity.as_ref().is_none_or(|c| c[n]))
                 .collect(),
         )
+    }
+
+    /// Voxels of `grid` whose centre lies in the reference mesh or within the brain margin
+    /// of it along an axis ([`preop_gap`](Self::preop_gap)): the face neighbours along an
+    /// axis whose spacing is at most the margin, the mesh located on the grid shifted by
+    /// the margin both ways along the others.
+    fn near_reference(&self, grid: &Grid) -> Option<Vec<bool>> {
+        let mut near = self.reference_inside(grid, grid.world_to_voxel())?;
+        let dims = grid.dims();
+        let stride = [1, dims[0], dims[0] * dims[1]];
+        let spacing = grid.spacing();
+        let inside = near.clone();
+        for a in 0..3 {
+            // The margin in voxels along axis a: half a voxel plus BRAIN_MARGIN_MM, at most one.
+            let s = (0.5 + BRAIN_MARGIN_MM / spacing[a]).min(1.0);
+            if s >= 1.0 {
+                near.par_iter_mut().enumerate().with_min_len(4096).for_each(|(n, v)| {
+                    let i = n / stride[a] % dims[a];
+                    *v |= (i > 0 && inside[n - stride[a]])
+                        || (i + 1 < dims[a] && inside[n + stride[a]]);
+                });
+                continue;
+            }
+            for sign in [-1.0, 1.0] {
+                // Voxel (i, j, k) of the shifted lattice is the point (i, j, k) + s e_a.
+                let mut shift = Matrix4::identity();
+                shift[(a, 3)] = -sign * s;
+                let shifted = self.reference_inside(grid, &(shift * grid.world_to_voxel()))?;
+                near.par_iter_mut().zip(&shifted).for_each(|(v, &m)| *v |= m);
+            }
+        }
+        Some(near)
     }
 
     /// A key of what [`preop_gap`](Self::preop_gap) depends on besides the grid: the
@@ -532,16 +567,17 @@ impl InverseMap {
         h.finish()
     }
 
-    /// Voxel centres of `grid` inside the reference (pre-operative) mesh; None when it cannot
-    /// be located there (the deformed mesh was searchable, so the reference one is: a node
-    /// moved onto another would have failed verification).
-    fn reference_inside(&self, grid: &Grid) -> Option<Vec<bool>> {
+    /// Voxel centres of `grid` (indices mapped by `world_to_voxel`) inside the reference
+    /// (pre-operative) mesh; None when it cannot be located there (the deformed mesh was
+    /// searchable, so the reference one is: a node moved onto another would have failed
+    /// verification).
+    fn reference_inside(&self, grid: &Grid, world_to_voxel: &Matrix4<f64>) -> Option<Vec<bool>> {
         let r = LatticeLocation::new(
             &self.reference,
             &self.tets,
             &self.ids,
             grid.dims(),
-            grid.world_to_voxel(),
+            world_to_voxel,
         )
         .ok()?;
         Some(r.owners().par_iter().map(|&o| o != OUTSIDE).collect())
@@ -569,9 +605,10 @@ impl InverseMap {
 
     /// The labels most of whose voxels lie inside the pre-operative (reference) mesh.
     fn brain_labels(&self, labels: &Volume<u32>) -> Vec<u32> {
-        self.reference_inside(&labels.grid).map_or_else(Vec::new, |inside| {
-            bs_image::sample::labels_mostly_inside(&labels.data, &inside)
-        })
+        self.reference_inside(&labels.grid, labels.grid.world_to_voxel())
+            .map_or_else(Vec::new, |inside| {
+                bs_image::sample::labels_mostly_inside(&labels.data, &inside)
+            })
     }
 
     /// `out` with every gap voxel replaced by `sample(x)` at its point `x` of `points` (in
@@ -637,6 +674,12 @@ impl InverseMap {
 /// of 1.5 mm away); the search stops at the first voxel found, so the radius only bounds
 /// the cost where there is none.
 pub const GAP_SEARCH_VOXELS: usize = 12;
+
+/// How far beyond half a voxel from its centre a voxel may still hold brain (mm): a mesh
+/// made from a segmentation runs up to about half a millimetre from its mask's voxel
+/// centres (the MNI152 demo's: 0.1–0.5 mm). [`InverseMap::preop_gap`] keeps the voxels
+/// farther than half a voxel plus this from the reference mesh along every axis.
+pub const BRAIN_MARGIN_MM: f64 = 0.5;
 
 /// Voxel centres of `grid` inside the closed surface `skull` (image frame).
 fn cavity(skull: &TriSurface, grid: &Grid) -> Vec<bool> {

@@ -173,6 +173,45 @@ fn check_affine(a: Matrix3<f64>, b: Vector3<f64>, tets: bool) {
 }
 
 #[test]
+fn the_pre_operative_gap_starts_half_a_voxel_and_half_a_millimetre_from_the_brain() {
+    // The box at (10, 12, 9), undeformed, on grids of 1, 1.5 and 4 mm (origins off every
+    // face and every shifted face). Closed form: a voxel is in the old gap when its centre
+    // y and the six points y ± m e_a lie outside the box, m = min(h/2 + 0.5 mm, h): on the
+    // 1 mm grid the face neighbours, on the 4 mm grid 2.5 mm (a 4 mm voxel whose centre is
+    // 2.5 mm out holds no brain; a whole voxel of margin dropped most of a thin gap).
+    let mesh = box_at([10.0, 12.0, 9.0], true);
+    let result = affine_result(&mesh, &Matrix3::identity(), Vector3::new(0.0, 0.0, 0.1));
+    let in_box = |p: &Point3<f64>| {
+        (0..3).all(|c| {
+            let lo = [10.0, 12.0, 9.0][c];
+            p[c] > lo && p[c] < lo + 40.0
+        })
+    };
+    for (h, n) in [(1.0, 64usize), (1.5, 44), (4.0, 16)] {
+        let g = Grid::axis_aligned([n; 3], [h; 3], [-2.13, -1.61, -2.87]).unwrap();
+        let map = InverseMap::new(&result, &g, Space::Ras, Path::new("(image)")).unwrap();
+        let gap = map.preop_gap(&g).unwrap();
+        let m: f64 = (0.5 * h + 0.5f64).min(h);
+        let (mut kept, mut wrong) = (0usize, 0usize);
+        for (v, &got) in gap.iter().enumerate() {
+            let y = voxel_world(&g, v);
+            let near = in_box(&y)
+                || (0..3).any(|a| {
+                    [-1.0, 1.0].iter().any(|s| {
+                        let mut q = y;
+                        q[a] += s * m;
+                        in_box(&q)
+                    })
+                });
+            kept += usize::from(got);
+            wrong += usize::from(got == near);
+        }
+        assert_eq!(wrong, 0, "{h} mm grid: {wrong} voxels misclassified");
+        assert!(kept > 0 && kept < g.len(), "{h} mm grid: {kept}");
+    }
+}
+
+#[test]
 fn a_uniform_translation_gives_the_translated_image() {
     check_affine(Matrix3::identity(), Vector3::new(3.3, -2.1, 4.7), true);
 }
