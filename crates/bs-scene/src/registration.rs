@@ -521,22 +521,17 @@ impl InverseMap {
     /// axis whose spacing is at most the margin, the mesh located on the grid shifted by
     /// the margin both ways along the others.
     fn near_reference(&self, grid: &Grid) -> Option<Vec<bool>> {
-        let mut near = self.reference_inside(grid, grid.world_to_voxel())?;
+        let inside = self.reference_inside(grid, grid.world_to_voxel())?;
         let dims = grid.dims();
-        let stride = [1, dims[0], dims[0] * dims[1]];
-        let spacing = grid.spacing();
-        let inside = near.clone();
-        for a in 0..3 {
-            // The margin in voxels along axis a: half a voxel plus BRAIN_MARGIN_MM, at most one.
-            let s = (0.5 + BRAIN_MARGIN_MM / spacing[a]).min(1.0);
-            if s >= 1.0 {
-                near.par_iter_mut().enumerate().with_min_len(4096).for_each(|(n, v)| {
-                    let i = n / stride[a] % dims[a];
-                    *v |= (i > 0 && inside[n - stride[a]])
-                        || (i + 1 < dims[a] && inside[n + stride[a]]);
-                });
-                continue;
-            }
+        // The margin in voxels along each axis: half a voxel plus BRAIN_MARGIN_MM, at most one.
+        let margin = grid.spacing().map(|h| (0.5 + BRAIN_MARGIN_MM / h).min(1.0));
+        let along = margin.map(|s| s >= 1.0);
+        let mut near: Vec<bool> = (0..inside.len())
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|n| bs_image::mask::touches_along(&inside, dims, along, n))
+            .collect();
+        for (a, &s) in margin.iter().enumerate().filter(|(a, _)| !along[*a]) {
             for sign in [-1.0, 1.0] {
                 // Voxel (i, j, k) of the shifted lattice is the point (i, j, k) + s e_a.
                 let mut shift = Matrix4::identity();
