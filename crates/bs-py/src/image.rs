@@ -33,13 +33,7 @@ impl Image {
         &self,
         result: &bs_scene::registration::RunResult,
     ) -> Result<Volume<f32>, bs_scene::SceneError> {
-        let map = bs_scene::registration::InverseMap::new(
-            result,
-            &self.volume.grid,
-            bs_image::Space::Ras,
-            &self.path,
-        )?;
-        let gap = self.preop_gap(&map);
+        let (map, gap) = self.map_and_gap(result)?;
         let data = map.warp_with_gap(&self.volume, &self.volume.data, gap.as_deref());
         Ok(Volume { grid: self.volume.grid.clone(), data })
     }
@@ -50,6 +44,15 @@ impl Image {
         &self,
         result: &bs_scene::registration::RunResult,
     ) -> Result<Volume<[f32; 3]>, bs_scene::SceneError> {
+        let (map, gap) = self.map_and_gap(result)?;
+        Ok(Volume { grid: self.volume.grid.clone(), data: map.field_with_gap(gap.as_deref()) })
+    }
+
+    /// The inverse map of `result` on this image's grid and the pre-operative gap it samples.
+    fn map_and_gap(
+        &self,
+        result: &bs_scene::registration::RunResult,
+    ) -> Result<(bs_scene::registration::InverseMap, Gap), bs_scene::SceneError> {
         let map = bs_scene::registration::InverseMap::new(
             result,
             &self.volume.grid,
@@ -57,7 +60,7 @@ impl Image {
             &self.path,
         )?;
         let gap = self.preop_gap(&map);
-        Ok(Volume { grid: self.volume.grid.clone(), data: map.field_with_gap(gap.as_deref()) })
+        Ok((map, gap))
     }
 
     /// The pre-operative gap of `map` on this image's grid, computed on the first ask for
