@@ -492,6 +492,10 @@ def test_image_read_once_warps_as_the_file(fixtures):
     assert not np.array_equal(b2, a)
     assert np.array_equal(r2.inverse_map(image).warp(image), b2)
     assert np.array_equal(r2.warp(image)[0], b2)
+    # A map's field without a warp before it (the gap located on its grid, not taken from
+    # an image): the same as the field from the file.
+    f2, _ = r2.field(fixtures / IMAGE)
+    assert np.array_equal(r2.inverse_map(fixtures / IMAGE).field(), f2)
 
 
 def test_frames_landmark_pairing_and_displacement_rows():
