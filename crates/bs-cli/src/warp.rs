@@ -69,8 +69,9 @@ pub(crate) fn print_summary(what: &str, s: &Summary, how: &str) {
     for n in &s.notes {
         eprintln!("note: {n}");
     }
+    let gap = s.gap_max_displacement.map_or(String::new(), |g| format!(", {g:.3} mm in the gap"));
     crate::emit(&format!(
-        "{what} {} of {} voxels inside the deformed brain ({how}; max displacement {:.3} mm): \
+        "{what} {} of {} voxels inside the deformed brain ({how}; max displacement {:.3} mm{gap}): \
          read {:.3} s, map {:.3} s, write {:.3} s\nwrote {}\n",
         s.inside,
         s.voxels,

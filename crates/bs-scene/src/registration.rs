@@ -695,8 +695,13 @@ pub struct Summary {
     pub voxels: usize,
     /// Voxels inside the deformed brain (mapped).
     pub inside: usize,
-    /// Largest |d| over the grid (mm).
+    /// Largest displacement in the brain (mm): of the result's nodes (`warp`), of the
+    /// field's voxels inside the deformed brain (`field`).
     pub max_displacement: f64,
+    /// Largest |d| over the field's gap voxels (mm; `field` only, None without a gap):
+    /// beyond the skin a gap voxel points at the pre-operative gap
+    /// ([`InverseMap::gap_points`]), on a coarse grid farther than the brain moved.
+    pub gap_max_displacement: Option<f64>,
     /// Seconds reading the result and the image.
     pub read_seconds: f64,
     /// Seconds computing the inverse map and resampling.
@@ -816,6 +821,7 @@ fn resample_and_write<T: Copy>(
         voxels: volume.grid.len(),
         inside: map.inside_count(),
         max_displacement: result.max_displacement_mm(),
+        gap_max_displacement: None,
         read_seconds,
         map_seconds,
         write_seconds,
@@ -882,10 +888,12 @@ pub fn field_file(result_dir: &Path, reference: &Path, out: &Path) -> Result<Sum
     let grid = &volume.grid;
     let map = InverseMap::new(&result, grid, Space::Ras, reference)?;
     let field = map.field();
-    let max_displacement = field
-        .iter()
-        .map(|d| d.iter().map(|&c| c as f64 * c as f64).sum::<f64>().sqrt())
-        .fold(0.0, f64::max);
+    let norm = |n: usize| field[n].iter().map(|&c| c as f64 * c as f64).sum::<f64>().sqrt();
+    let inside = map.inside_mask();
+    let max_displacement = (0..field.len()).filter(|&n| inside[n]).map(norm).fold(0.0, f64::max);
+    let gaps = map.gap_voxels();
+    let gap =
+        (!gaps.is_empty()).then(|| gaps.iter().map(|&n| norm(n as usize)).fold(0.0, f64::max));
     let map_seconds = t.elapsed().as_secs_f64();
     let t = Instant::now();
     bs_image::formats::write_displacement(out, grid, &field, header.as_ref())
@@ -895,6 +903,7 @@ pub fn field_file(result_dir: &Path, reference: &Path, out: &Path) -> Result<Sum
         voxels: grid.len(),
         inside: map.inside_count(),
         max_displacement,
+        gap_max_displacement: gap,
         read_seconds,
         map_seconds,
         write_seconds: t.elapsed().as_secs_f64(),

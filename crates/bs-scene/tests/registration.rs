@@ -489,6 +489,28 @@ fn simpleitk_applying_the_exported_fields_gives_the_warp() {
 }
 
 #[test]
+fn the_field_summary_gives_the_brains_and_the_gaps_largest_displacement_apart() {
+    let fx = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/registration");
+    let d = tmp("summary");
+    let s = field_file(&fx.join("run"), &fx.join("preop.nii.gz"), &d.join("f.nii.gz")).unwrap();
+    let result = RunResult::load(&fx.join("run")).unwrap();
+    let nodal = result.max_displacement_mm();
+    // Inside the deformed brain d(y) = −Σ w_i u_i (barycentric weights of the deformed
+    // tetrahedron), so |d| ≤ max |u_i|: the nodal largest bounds it; the 4 mm voxels sample
+    // the craniotomy's top within a few percent of it.
+    assert!(s.max_displacement <= nodal + 1e-4, "{} vs {nodal}", s.max_displacement);
+    assert!(s.max_displacement > 0.9 * nodal, "{} vs {nodal}", s.max_displacement);
+    // In the gap on these 4 mm voxels points move to the pre-operative gap, farther than
+    // the brain moved (fixtures/registration/README.md: 15.0 mm), but within the search:
+    // the harmonic extension's components stay within the brain's (maximum principle), and
+    // a point moves at most GAP_SEARCH_VOXELS voxels along each axis.
+    let gap = s.gap_max_displacement.expect("a gap between brain and skull");
+    let h = 4.0 * 3f64.sqrt();
+    assert!(gap > nodal && gap <= 3f64.sqrt() * nodal + GAP_SEARCH_VOXELS as f64 * h, "{gap}");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
 fn a_grid_with_an_oblique_flipped_affine_gives_the_same_reference_points() {
     // The same world points on two grids (one axis-aligned, one with flipped i and a
     // permutation of axes): X(y) depends on y only.
