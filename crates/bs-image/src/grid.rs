@@ -107,6 +107,13 @@ impl Grid {
         self.voxel_to_world.transform_point(&Point3::new(ijk[0], ijk[1], ijk[2]))
     }
 
+    /// World position of the centre of the voxel with linear index `n` (`i + nx (j + ny k)`).
+    #[inline]
+    pub fn centre(&self, n: usize) -> Point3<f64> {
+        let [nx, ny, _] = self.dims;
+        self.world([(n % nx) as f64, ((n / nx) % ny) as f64, (n / (nx * ny)) as f64])
+    }
+
     /// Continuous voxel indices of a world point.
     #[inline]
     pub fn voxel(&self, p: &Point3<f64>) -> [f64; 3] {

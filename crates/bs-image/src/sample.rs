@@ -90,14 +90,7 @@ pub fn settle_within(grid: &Grid, p: &Point3<f64>, allowed: &[bool], radius: usi
     if corners.iter().all(|&(n, w)| w == 0.0 || allowed[n]) {
         return *p;
     }
-    let centre = |n: usize| {
-        grid.world([
-            (n % dims[0]) as f64,
-            ((n / dims[0]) % dims[1]) as f64,
-            (n / (dims[0] * dims[1])) as f64,
-        ])
-    };
-    nearest_where(dims, ijk, radius, |n| allowed[n]).map_or(*p, centre)
+    nearest_where(dims, ijk, radius, |n| allowed[n]).map_or(*p, |n| grid.centre(n))
 }
 
 /// The interpolation cell of continuous indices `ijk`: its lowest corner and the fractions

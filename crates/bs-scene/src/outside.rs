@@ -117,10 +117,7 @@ impl Outside {
             let field = |n: usize| self.get(n).or_else(|| inside(n)).unwrap_or([0.0; 3]);
             let folding = jacobian(grid, &self.voxels, &field);
             let at = folding.worst.map(|v| {
-                let [nx, ny, _] = grid.dims();
-                let n = v as usize;
-                let p =
-                    grid.world([(n % nx) as f64, ((n / nx) % ny) as f64, (n / (nx * ny)) as f64]);
+                let p = grid.centre(v as usize);
                 [p.x, p.y, p.z]
             });
             (folding, at)

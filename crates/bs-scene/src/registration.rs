@@ -386,8 +386,7 @@ impl InverseMap {
     }
 
     fn voxel_centre(&self, n: usize) -> Point3<f64> {
-        let [nx, ny, _] = self.grid.dims();
-        self.grid.world([(n % nx) as f64, ((n / nx) % ny) as f64, (n / (nx * ny)) as f64])
+        self.grid.centre(n)
     }
 
     /// What the extension outside the deformed brain did (None: identity there).
