@@ -87,6 +87,7 @@ mod null;
 pub mod paper;
 #[cfg(feature = "parry")]
 mod parry_handler;
+pub mod patch;
 pub mod query;
 #[cfg(any(test, feature = "testing"))]
 pub mod shapes;
@@ -108,4 +109,5 @@ pub use null::NullHandler;
 pub use paper::{AdditionalLists, PaperContact, PaperParams};
 #[cfg(feature = "parry")]
 pub use parry_handler::ParryContact;
+pub use patch::{Patch, PatchPoint};
 pub use query::{ClosestPoint, Feature, Projection};

@@ -72,6 +72,7 @@
 
 pub mod assembly;
 pub mod contact;
+pub mod data;
 pub mod dr;
 pub mod element;
 mod kernels;
@@ -97,6 +98,7 @@ pub use assembly::ReferenceWorkspace;
 pub use assembly::StepBound;
 pub use assembly::{Inversion, Workspace};
 pub use contact::{Contact, ContactProjection, ContactReport, NoContact, SurfaceFeature};
+pub use data::{DataTerm, NoData, Spring, Springs};
 pub use dr::{DrError, DrInfo, DrParams, DynamicRelaxation};
 pub use element::{Solid, TetFormulation};
 #[doc(hidden)]

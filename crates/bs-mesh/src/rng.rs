@@ -45,6 +45,14 @@ impl SplitMix64 {
         lo + (hi - lo) * self.uniform()
     }
 
+    /// Standard normal (Box–Muller on two uniforms; the second value is not kept, so the
+    /// stream stays one draw per call pair and easy to reason about).
+    pub fn normal(&mut self) -> f64 {
+        let u1 = 1.0 - self.uniform(); // (0, 1]: the logarithm stays finite
+        let u2 = self.uniform();
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    }
+
     /// Uniform direction on the unit sphere.
     pub fn direction(&mut self) -> Vector3<f64> {
         loop {
@@ -61,6 +69,17 @@ impl SplitMix64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Normal draws have mean 0 and variance 1 (20 000 draws: standard errors 0.007 and
+    /// 0.01).
+    #[test]
+    fn normal_draws_have_unit_variance() {
+        let mut r = SplitMix64::new(11);
+        let v: Vec<f64> = (0..20_000).map(|_| r.normal()).collect();
+        let mean = v.iter().sum::<f64>() / v.len() as f64;
+        let var = v.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / v.len() as f64;
+        assert!(mean.abs() < 0.03 && (var - 1.0).abs() < 0.04, "{mean} {var}");
+    }
 
     /// Same seed, same stream; uniform numbers in [0, 1); directions of unit length.
     #[test]

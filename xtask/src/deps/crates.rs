@@ -17,7 +17,11 @@ pub const ALLOWED: &[(&str, &[&str])] = &[
     ("bs-meshgen", &["bs-mesh", "bs-image"]),
     ("bs-contact", &["bs-mesh"]),
     ("bs-dr", &["bs-mesh", "bs-material"]),
-    ("bs-scene", &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-image", "bs-meshgen"]),
+    ("bs-fit", &["bs-mesh", "bs-contact", "bs-dr"]),
+    (
+        "bs-scene",
+        &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-fit", "bs-image", "bs-meshgen"],
+    ),
     ("bs-cli", &["bs-mesh", "bs-dr", "bs-contact", "bs-scene", "bs-preview"]),
     ("bs-py", &["bs-mesh", "bs-contact", "bs-scene", "bs-image"]),
     (

@@ -21,8 +21,8 @@ pub const ORDERS: &[(&str, Order)] = &[(
         &["assembly"],
         // The model (elements + blocks + slot map) and its masses and critical steps.
         &["model", "mass"],
-        // The solvers, their seams (contact, loads) and post-processing.
-        &["contact", "loads", "solver", "dr", "newton", "nk", "post"],
+        // The solvers, their seams (contact, loads, data) and post-processing.
+        &["contact", "data", "loads", "solver", "dr", "newton", "nk", "post"],
     ],
 )];
 

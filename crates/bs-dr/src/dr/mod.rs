@@ -19,6 +19,10 @@
 //!   steps in a row, never a fixed step count. `ρₑ` is the more pessimistic of the rate from
 //!   `0.9 ω_min` and the decay rate of `max|Δu|` observed over the last snapshot window.
 //! * Prescribed components follow the 3-4-5 ramp over `ramp_steps` steps, then stay.
+//! * Measurements ([`DataTerm`]) are an external force: the springs of their linearisation,
+//!   ramped in with the prescribed components and linearised again every
+//!   `snapshot_interval` steps; each node's mass also carries its springs' stiffness bound
+//!   (never decreasing), so the step stays stable.
 //! * Guard: non-finite values, an inverted element, alternating growth of `Δu` (time step
 //!   above critical) and displacements beyond `divergence_factor × load scale` stop the run
 //!   with a typed [`DrError`].
@@ -43,6 +47,7 @@ use self::guard::{GrowthGuard, StepChange};
 use self::rayleigh::RayleighEstimator;
 use crate::assembly::Workspace;
 use crate::contact::{Contact, ContactReport};
+use crate::data::{DataTerm, NoData, Springs};
 use crate::loads::{Loads, ramp};
 use crate::model::Model;
 use crate::solver::{Progress, Solution, SolveError, Solver, load_scale};
@@ -56,6 +61,8 @@ pub struct DynamicRelaxation {
 
 /// What the loop reads: masses, which DOFs are free and fixed, and the fixed values.
 struct Setup {
+    /// The masses the elements alone need, and the masses in use (with the springs').
+    element_masses: Vec<f64>,
     masses: Vec<f64>,
     inv_m: Vec<f64>,
     free: Vec<usize>,
@@ -73,7 +80,34 @@ impl Setup {
         let (free, fixed) = loads.split_dofs();
         let fixed_value = fixed.iter().map(|&d| loads.value(d / 3, d % 3)).collect();
         let fixed_start = fixed.iter().map(|&d| start[d / 3][d % 3]).collect();
-        Setup { masses, inv_m, free, fixed, fixed_start, fixed_value }
+        let element_masses = masses.clone();
+        Setup { element_masses, masses, inv_m, free, fixed, fixed_start, fixed_value }
+    }
+
+    /// The measurements linearised at `u` into `springs`, and the masses raised where the
+    /// springs' stiffness needs it (`m_a ≥ m_elements + k_a / 4f²`; never lowered).
+    fn linearise(
+        &mut self,
+        model: &Model,
+        s: &mut State,
+        step_fraction: f64,
+        data: &mut dyn DataTerm,
+    ) {
+        let reference = model.reference();
+        for (x, (x0, u)) in s.positions.iter_mut().zip(reference.iter().zip(&s.u)) {
+            *x = x0 + u;
+        }
+        data.linearise(&s.positions, &mut s.springs);
+        s.bound.iter_mut().for_each(|b| *b = 0.0);
+        s.springs.add_stiffness_bound_into(&mut s.bound);
+        let f2 = step_fraction * step_fraction;
+        for (a, &k) in s.bound.iter().enumerate() {
+            let m = self.element_masses[a] + k / (4.0 * f2);
+            if m > self.masses[a] {
+                self.masses[a] = m;
+                self.inv_m[a] = 1.0 / m;
+            }
+        }
     }
 
     /// `u⁺ = u + ρ²(u − u⁻) − ¼(1 + ρ)² M⁻¹ f` on the free DOFs; the fixed ones at `load`
@@ -102,6 +136,9 @@ struct State {
     f: Vec<Vector3<f64>>,
     positions: Vec<Point3<f64>>,
     ws: Workspace,
+    /// The measurements' springs and their per-node stiffness bounds.
+    springs: Springs,
+    bound: Vec<f64>,
 }
 
 impl State {
@@ -114,6 +151,8 @@ impl State {
             f: zero,
             positions: model.reference().to_vec(),
             ws: model.workspace(),
+            springs: Springs::new(),
+            bound: vec![0.0; model.node_count()],
         }
     }
 
@@ -191,6 +230,20 @@ impl DynamicRelaxation {
         contact: &mut dyn Contact,
         observer: &mut dyn FnMut(&Progress),
     ) -> Result<Solution<DrInfo>, DrError> {
+        self.solve_fit(model, start, loads, contact, &mut NoData, observer)
+    }
+
+    /// [`solve_from`](Self::solve_from) with measurements: the answer minimises the strain
+    /// energy plus the energy of `data` (see [`crate::data`]), an external force here.
+    pub fn solve_fit(
+        &self,
+        model: &Model,
+        start: &[Vector3<f64>],
+        loads: &Loads,
+        contact: &mut dyn Contact,
+        data: &mut dyn DataTerm,
+        observer: &mut dyn FnMut(&Progress),
+    ) -> Result<Solution<DrInfo>, DrError> {
         let p = self.params;
         p.validate()?;
         let n = model.node_count();
@@ -199,7 +252,7 @@ impl DynamicRelaxation {
             return Err(DrError::LoadMismatch { expected: n, got });
         }
         let start_time = Instant::now();
-        let setup = Setup::new(model, loads, p.step_fraction, start);
+        let mut setup = Setup::new(model, loads, p.step_fraction, start);
         let scale = load_scale(model, loads);
         let tol = p.tolerance * scale;
         let ramp_steps = p.ramp_steps.max(1);
@@ -207,11 +260,19 @@ impl DynamicRelaxation {
         let mut rayleigh = RayleighEstimator::new(n, omega, p.rho, ramp_steps, p.snapshot_interval);
         let mut guard = GrowthGuard::new(p.step_fraction, p.divergence_factor * scale);
         let mut s = State::new(model, start);
+        let fitting = data.is_active();
         let (mut maxd, mut below, mut err) = (0.0f64, 0usize, f64::INFINITY);
         for step in 1..=p.max_steps {
+            if fitting && (step - 1) % p.snapshot_interval == 0 {
+                setup.linearise(model, &mut s, p.step_fraction, data);
+            }
             // Forces at the state after `step − 1` steps, and a Rayleigh snapshot if due.
             if let Err(inv) = model.internal_forces_into(&s.u, &mut s.ws, &mut s.f) {
                 return Err(guard.inverted(step, inv));
+            }
+            if fitting {
+                let pull = ramp(step as f64 / ramp_steps as f64);
+                s.springs.add_forces_into(model.reference(), &s.u, pull, &mut s.f);
             }
             rayleigh.observe(step - 1, &s.u, &s.f, &setup.masses, &setup.free, maxd);
             let (rho, load) = (rayleigh.rho(), ramp(step as f64 / ramp_steps as f64));

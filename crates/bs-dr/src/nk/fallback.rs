@@ -9,6 +9,7 @@ use bs_mesh::Vector3;
 
 use super::problem::Problem;
 use crate::contact::Contact;
+use crate::data::DataTerm;
 use crate::dr::{DrError, DrInfo, DrParams, DynamicRelaxation};
 use crate::solver::{Progress, Solution};
 
@@ -29,8 +30,7 @@ pub(crate) fn dynamic_relaxation(
     start: &[Vector3<f64>],
     done: f64,
     offset: usize,
-    contact: &mut dyn Contact,
-    observer: &mut dyn FnMut(&Progress),
+    (contact, data, observer): (&mut dyn Contact, &mut dyn DataTerm, &mut dyn FnMut(&Progress)),
 ) -> Result<Solution<DrInfo>, DrError> {
     let tolerance = FALLBACK_MARGIN * pb.params.tolerance;
     let dr = DynamicRelaxation::new(DrParams { tolerance, ..DrParams::default() });
@@ -41,5 +41,5 @@ pub(crate) fn dynamic_relaxation(
             ..*p
         })
     };
-    dr.solve_from(pb.model, start, pb.loads, contact, &mut relay)
+    dr.solve_fit(pb.model, start, pb.loads, contact, data, &mut relay)
 }

@@ -10,6 +10,7 @@ use super::linear::{LinearBuffers, forces};
 use super::outcome::NewtonKrylovError;
 use super::problem::Problem;
 use crate::assembly::Workspace;
+use crate::data::{DataTerm, Springs};
 use crate::linalg::krylov::Gmres;
 use crate::linalg::twolevel::Constraints;
 
@@ -25,6 +26,8 @@ pub(crate) struct Iterate {
     pub particular: Vec<Vector3<f64>>,
     pub direction: Vec<Vector3<f64>>,
     pub springs: Vec<(usize, f64)>,
+    /// The data term linearised at the last relinearisation (empty without measurements).
+    pub data: Springs,
     pub positions: Vec<Point3<f64>>,
     pub active: ActiveSet,
     pub cons: Constraints,
@@ -40,8 +43,13 @@ pub(crate) struct Iterate {
 }
 
 impl Iterate {
-    /// The start state (zero displacement without one), and its forces.
-    pub(crate) fn new(pb: &Problem<'_>, work: &mut Work) -> Result<Self, NewtonKrylovError> {
+    /// The start state (zero displacement without one), the data term linearised there,
+    /// and its forces.
+    pub(crate) fn new(
+        pb: &Problem<'_>,
+        work: &mut Work,
+        data: &mut dyn DataTerm,
+    ) -> Result<Self, NewtonKrylovError> {
         let n = pb.model.node_count();
         let zeros = vec![Vector3::<f64>::zeros(); n];
         let mut it = Iterate {
@@ -53,6 +61,7 @@ impl Iterate {
             particular: zeros.clone(),
             direction: zeros.clone(),
             springs: Vec::new(),
+            data: Springs::new(),
             positions: pb.model.reference().to_vec(),
             active: ActiveSet::new(pb.nodes.len()),
             cons: pb.tl().constraints(),
@@ -70,9 +79,31 @@ impl Iterate {
             in_contact: 0,
             err: f64::INFINITY,
         };
-        forces(pb.model, &it.u, &mut it.ws, &mut it.f, work)
+        if data.is_active() {
+            it.set_positions(pb);
+            data.linearise(&it.positions, &mut it.data);
+        }
+        forces(pb.model, &it.data, &it.u, &mut it.ws, &mut it.f, work)
             .map_err(NewtonKrylovError::inverted)?;
         Ok(it)
+    }
+
+    /// `positions ← X + u` for every node.
+    pub(crate) fn set_positions(&mut self, pb: &Problem<'_>) {
+        let reference = pb.model.reference();
+        self.positions.iter_mut().zip(reference.iter().zip(&self.u)).for_each(|(x, (x0, u))| {
+            *x = x0 + u;
+        });
+    }
+
+    /// The data term linearised again at the iterate: its forces in `f` move from the old
+    /// springs to the new ones (no element work: the springs are linear in `u`).
+    pub(crate) fn relinearise(&mut self, pb: &Problem<'_>, data: &mut dyn DataTerm) {
+        let reference = pb.model.reference();
+        self.data.add_forces_into(reference, &self.u, -1.0, &mut self.f);
+        self.set_positions(pb);
+        data.linearise(&self.positions, &mut self.data);
+        self.data.add_forces_into(reference, &self.u, 1.0, &mut self.f);
     }
 }
 
@@ -80,6 +111,8 @@ impl Iterate {
 pub(crate) struct Converged {
     u: Vec<Vector3<f64>>,
     f: Vec<Vector3<f64>>,
+    /// The data springs `f` was computed with.
+    data: Springs,
     active: ActiveSet,
     phi: f64,
     before: Option<Vec<Vector3<f64>>>,
@@ -91,6 +124,7 @@ impl Converged {
         Converged {
             u: it.u.clone(),
             f: it.f.clone(),
+            data: it.data.clone(),
             active: it.active.clone(),
             phi: it.phi,
             before: None,
@@ -102,6 +136,7 @@ impl Converged {
         let before = std::mem::replace(&mut self.u, it.u.clone());
         self.before = Some(before);
         self.f.copy_from_slice(&it.f);
+        self.data.clone_from(&it.data);
         self.active = it.active.clone();
         self.phi = it.phi;
     }
@@ -110,6 +145,7 @@ impl Converged {
     pub(crate) fn restore(&self, it: &mut Iterate) {
         it.u.copy_from_slice(&self.u);
         it.f.copy_from_slice(&self.f);
+        it.data.clone_from(&self.data);
         it.active = self.active.clone();
         it.phi = self.phi;
     }

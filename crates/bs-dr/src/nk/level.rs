@@ -21,6 +21,7 @@ use super::problem::Problem;
 use super::refresh;
 use super::termination::{Failure, Iteration, Termination, Verdict};
 use crate::contact::{Contact, ContactReport};
+use crate::data::DataTerm;
 use crate::solver::{LoadFailure, Progress};
 
 /// Where a level starts.
@@ -51,6 +52,7 @@ pub(crate) fn solve(
     work: &mut Work,
     start: Start<'_>,
     contact: &mut dyn Contact,
+    data: &mut dyn DataTerm,
     observer: &mut dyn FnMut(&Progress),
 ) -> Result<Level, NewtonKrylovError> {
     let p = pb.params;
@@ -79,6 +81,14 @@ pub(crate) fn solve(
             return Ok(Level::Exhausted);
         }
         work.iterations += 1;
+        // 0. The measurements linearised at the iterate (correspondences, robust weights):
+        // the data force in `f` and the residual follow.
+        if data.is_active() {
+            let t = Instant::now();
+            it.relinearise(pb, data);
+            it.phi = pb.merit(&it.u, &it.f, contact)?;
+            work.time.contact += t.elapsed();
+        }
         // 1. The active set: kept from the last level after a predictor, else chosen from the
         // trial points.
         let t = Instant::now();
@@ -186,13 +196,13 @@ fn search(
     contact: &mut dyn Contact,
 ) -> Result<Option<(f64, f64)>, NewtonKrylovError> {
     let phi = it.phi;
-    let Iterate { u, trial_u, trial_f, ws, direction, .. } = it;
+    let Iterate { u, trial_u, trial_f, ws, direction, data, .. } = it;
     let mut eval = |alpha: f64| -> Result<Option<Merit>, NewtonKrylovError> {
         trial_u
             .par_iter_mut()
             .zip(u.par_iter().zip(direction.par_iter()))
             .for_each(|(t, (a, d))| *t = a + d * alpha);
-        if forces(pb.model, trial_u, ws, trial_f, work).is_err() {
+        if forces(pb.model, data, trial_u, ws, trial_f, work).is_err() {
             return Ok(None);
         }
         let t = Instant::now();

@@ -14,14 +14,18 @@ use rayon::prelude::*;
 use super::Work;
 use super::mixed::{MixedBuffers, Tolerance};
 use crate::assembly::{Inversion, Workspace};
+use crate::data::Springs;
 use crate::linalg::krylov::{Gmres, GmresInfo};
 use crate::linalg::sparse::max_abs;
 use crate::linalg::twolevel::{Constraints, TwoLevel, TwoLevelScratch};
 use crate::model::Model;
 
-/// Internal forces with the count and time kept.
+/// The forces of the energy the solve minimises at `u`: the internal forces plus the data
+/// springs of the current linearisation (none without measurements), with the count and
+/// time kept.
 pub(crate) fn forces(
     model: &Model,
+    data: &Springs,
     u: &[Vector3<f64>],
     ws: &mut Workspace,
     f: &mut [Vector3<f64>],
@@ -30,6 +34,9 @@ pub(crate) fn forces(
     let t = Instant::now();
     work.forces += 1;
     let r = model.internal_forces_into(u, ws, f);
+    if r.is_ok() && !data.is_empty() {
+        data.add_forces_into(model.reference(), u, 1.0, f);
+    }
     work.time.forces += t.elapsed();
     r
 }
@@ -50,6 +57,8 @@ pub(crate) struct LinearBuffers {
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Linearisation<'a> {
     pub model: &'a Model,
+    /// The data springs of the iteration (their Jacobian enters through the difference).
+    pub data: &'a Springs,
     pub u: &'a [Vector3<f64>],
     pub f: &'a [Vector3<f64>],
     pub particular: &'a [Vector3<f64>],
@@ -71,7 +80,7 @@ pub(crate) fn solve(
     max_iterations: usize,
     work: &mut Work,
 ) -> Result<GmresInfo, Inversion> {
-    let (model, u, f) = (lin.model, lin.u, lin.f);
+    let (model, data, u, f) = (lin.model, lin.data, lin.u, lin.f);
     let pi = &lin.cons.projector;
     // Right-hand side −Π (f + J u_p).
     let pmax = max_abs(lin.particular);
@@ -82,7 +91,7 @@ pub(crate) fn solve(
             .zip(u.par_iter())
             .zip(lin.particular.par_iter())
             .for_each(|((w, a), p)| *w = a + p * h);
-        forces(model, &b.up, ws, &mut b.fd, work)?;
+        forces(model, data, &b.up, ws, &mut b.fd, work)?;
         b.rhs.par_iter_mut().zip(f.par_iter()).zip(b.fd.par_iter()).for_each(|((r, f0), f1)| {
             *r = -(f0 + (f1 - f0) / h);
         });
@@ -101,7 +110,7 @@ pub(crate) fn solve(
         up.par_iter_mut().zip(u.par_iter()).zip(v.par_iter()).for_each(|((w, a), d)| {
             *w = a + d * h;
         });
-        match forces(model, up, ws, out, work) {
+        match forces(model, data, up, ws, out, work) {
             Ok(()) => {
                 out.par_iter_mut().zip(f.par_iter()).for_each(|(o, f0)| *o = (*o - f0) / h);
                 for &(a, k) in lin.springs {

@@ -107,6 +107,7 @@ pub(crate) fn direction(
     work.time.preconditioner += t.elapsed();
     let lin = Linearisation {
         model: pb.model,
+        data: &it.data,
         u: &it.u,
         f: &it.f,
         particular: &it.particular,
@@ -211,7 +212,7 @@ pub(crate) fn predict(
         it.active = saved;
         return Ok(None);
     }
-    if forces(pb.model, &it.trial_u, &mut it.ws, &mut it.trial_f, work).is_err() {
+    if forces(pb.model, &it.data, &it.trial_u, &mut it.ws, &mut it.trial_f, work).is_err() {
         it.active = saved;
         return Ok(None);
     }

@@ -86,6 +86,7 @@ use self::level::{Level, Start};
 use self::problem::Problem;
 use self::refresh::Preconditioners;
 use crate::contact::{Contact, ContactReport};
+use crate::data::{DataTerm, NoData};
 use crate::linalg::twolevel::{Projector, TwoLevel};
 use crate::loads::Loads;
 use crate::model::Model;
@@ -174,8 +175,8 @@ pub(crate) struct Work {
     pub time: Breakdown,
 }
 
-/// The contact handler and the progress observer a solve reports to.
-type Seams<'a, 'b> = (&'a mut dyn Contact, &'b mut dyn FnMut(&Progress));
+/// The contact handler, the measurements and the progress observer of a solve.
+type Seams<'a, 'b, 'c> = (&'a mut dyn Contact, &'c mut dyn DataTerm, &'b mut dyn FnMut(&Progress));
 
 impl NewtonKrylov {
     /// A solver with the given parameters.
@@ -252,12 +253,29 @@ impl NewtonKrylov {
         contact: &mut dyn Contact,
         observer: &mut dyn FnMut(&Progress),
     ) -> Result<Solution<NewtonKrylovInfo>, NewtonKrylovError> {
+        self.solve_prepared_fit(model, loads, prep, warm, contact, &mut NoData, observer)
+    }
+
+    /// [`solve_prepared_warm`](Self::solve_prepared_warm) with measurements: the answer
+    /// minimises the strain energy plus the energy of `data` (see [`crate::data`]), which is
+    /// linearised again at every Newton iteration.
+    #[allow(clippy::too_many_arguments)]
+    pub fn solve_prepared_fit(
+        &self,
+        model: &Model,
+        loads: &Loads,
+        prep: &Preparation,
+        warm: Option<WarmStart<'_>>,
+        contact: &mut dyn Contact,
+        data: &mut dyn DataTerm,
+        observer: &mut dyn FnMut(&Progress),
+    ) -> Result<Solution<NewtonKrylovInfo>, NewtonKrylovError> {
         let start = Instant::now();
         let start_state = warm.as_ref().map(|w| w.state);
         let pre = Preconditioners::new(&prep.preconditioner);
         let pb = Problem::new(&self.params, model, loads, prep, &pre, &*contact, start_state)?;
         let mut work = Work::default();
-        let mut it = Iterate::new(&pb, &mut work)?;
+        let mut it = Iterate::new(&pb, &mut work, data)?;
         let mut saved = Converged::start(&it);
         let mut cont = Continuation::new(self.params.continuation);
         // The earlier state sits at λ = −1/s: at target t the predictor's factor is t s.
@@ -272,7 +290,7 @@ impl NewtonKrylov {
                 None => saved.before().zip(cont.extrapolation(target)),
             };
             let level_start = Start { done: cont.done(), target, secant };
-            match level::solve(&pb, &mut it, &mut work, level_start, contact, observer)? {
+            match level::solve(&pb, &mut it, &mut work, level_start, contact, data, observer)? {
                 Level::Converged { reached, iterations } => {
                     cont.accept(reached, iterations);
                     saved.push(&it);
@@ -280,7 +298,7 @@ impl NewtonKrylov {
                 Level::Exhausted => {
                     saved.restore(&mut it);
                     let failure = LoadFailure::Exhausted { iterations: self.params.max_iterations };
-                    let seams = (contact, observer);
+                    let seams = (contact, data, observer);
                     return self.fall_back(&pb, &saved, cont.done(), failure, work, seams, start);
                 }
                 Level::Failed { failure } => {
@@ -292,7 +310,7 @@ impl NewtonKrylov {
                             e.reached,
                             failure,
                             work,
-                            (contact, observer),
+                            (contact, data, observer),
                             start,
                         );
                     }
@@ -311,7 +329,7 @@ impl NewtonKrylov {
         reached: f64,
         cause: LoadFailure,
         work: Work,
-        (contact, observer): Seams<'_, '_>,
+        (contact, data, observer): Seams<'_, '_, '_>,
         start: Instant,
     ) -> Result<Solution<NewtonKrylovInfo>, NewtonKrylovError> {
         let not_carried = |fallback| NewtonKrylovError::LoadNotCarried {
@@ -324,8 +342,8 @@ impl NewtonKrylov {
             return Err(not_carried(None));
         }
         let start_u = saved.displacements();
-        match fallback::dynamic_relaxation(pb, start_u, reached, work.iterations, contact, observer)
-        {
+        let seams = (contact, data, observer);
+        match fallback::dynamic_relaxation(pb, start_u, reached, work.iterations, seams) {
             Err(e) => Err(not_carried(Some(e))),
             Ok(sol) => Ok(Solution {
                 displacements: sol.displacements,

@@ -1,0 +1,32 @@
+//! Intra-operative measurements fitted with the biomechanical model as the regulariser.
+//!
+//! Imposing measured displacements node by node turns the measurement's noise into
+//! fictitious forces: half a millimetre of noise inverts surface elements, an outlier tears
+//! the surface, a partial scan leaves nodes without a value. Here a measurement is an
+//! energy added to the model's (bs-dr's [`DataTerm`](bs_dr::DataTerm) seam), so the answer
+//! minimises
+//!
+//! `Π(u) + Σ_i k_i ρ(r_i(u) / s)`
+//!
+//! over the displacements `u`, with `Π` the hyperelastic strain energy (and the skull as a
+//! constraint), `r_i` the distance of measured point `i` from the deformed brain, `k_i` its
+//! stiffness, `ρ` Tukey's biweight at the robust scale `s ≥ σ`. The solver linearises the
+//! data term once per Newton iteration (Gauss–Newton on the data, point-to-plane), so the
+//! fit is a steady state of the same machinery as a prescribed load. `docs/fit.md` derives
+//! the weights and measures the result.
+//!
+//! * [`surface`]: a scanned surface (laser range scanner, stereo camera) fitted
+//!   point-to-surface on the exposed patch, density-independent weights per face;
+//! * [`rigid`]: the scan's rigid misalignment, estimated from points on bone;
+//! * [`robust`]: the scale estimate and the biweight.
+//!
+//! Architecture invariant: bs-fit knows points, triangles and bs-dr's data seam; it reads
+//! no files and knows no scene (bs-scene builds its terms), no elements and no solver
+//! internals.
+
+pub mod rigid;
+pub mod robust;
+pub mod surface;
+
+pub use rigid::{Rigid, RigidError, RigidFit, RigidParams, fit_rigid};
+pub use surface::{PointFit, PointStatus, SurfaceFit, SurfaceParams, surface_stiffness};
