@@ -1,7 +1,9 @@
 //! Mesh file formats.
 //!
 //! Volume meshes: Abaqus `.inp`, Gmsh `.msh` (4.1 and 2.2, ASCII or binary), VTK legacy `.vtk` and
-//! VTU `.vtu` unstructured grids. Surfaces: STL (ASCII and binary), OBJ, OFF.
+//! VTU `.vtu` unstructured grids. Surfaces: STL (ASCII and binary), OBJ, OFF. Point clouds
+//! ([`points::read_points`]): CSV, PLY, VTK legacy and XML polydata, and the vertices of the
+//! surface formats.
 //!
 //! Every parser works on bytes already in memory (so tests can feed truncated and mutated
 //! input) and reports a [`ParseError`] naming the file, the line (text formats) or byte
@@ -20,6 +22,8 @@ pub mod inp;
 pub mod msh;
 pub mod obj;
 pub mod off;
+pub mod ply;
+pub mod points;
 pub mod stl;
 pub mod vtk;
 pub mod vtu;

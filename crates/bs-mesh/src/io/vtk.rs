@@ -277,8 +277,12 @@ enum Section {
     Cell(usize),
 }
 
-/// Parses a legacy VTK unstructured grid (ASCII or big-endian BINARY).
-pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
+/// The header of a legacy VTK file: the cursor after `DATASET <type>`, the frame named in
+/// the title line, the dataset type (upper case) and its line.
+fn open<'a>(
+    bytes: &'a [u8],
+    file: &'a Path,
+) -> Result<(Cursor<'a>, Option<&'static str>, String, usize), ParseError> {
     // A UTF-8 byte-order mark before the header is skipped (byte offsets stay file offsets).
     let bom = bytes.len() - super::strip_bom(bytes).len();
     let mut c = Cursor { b: bytes, pos: bom, line: 1, file, binary: false };
@@ -307,10 +311,39 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
     };
     let (kw, line) = c.expect_token("DATASET")?;
     if !kw.eq_ignore_ascii_case("DATASET") {
-        return Err(c.err_line(line, format!("expected 'DATASET UNSTRUCTURED_GRID', found '{kw}'")));
+        return Err(c.err_line(line, format!("expected 'DATASET <type>', found '{kw}'")));
     }
     let (ds, line) = c.expect_token("the dataset type")?;
-    if !ds.eq_ignore_ascii_case("UNSTRUCTURED_GRID") {
+    Ok((c, space, ds.to_ascii_uppercase(), line))
+}
+
+/// The points of a legacy VTK file of any dataset with a `POINTS` section (`POLYDATA`, as a
+/// point cloud or a surface, or `UNSTRUCTURED_GRID`): its vertices, whatever cells it has.
+pub fn read_points(bytes: &[u8], file: &Path) -> Result<Vec<nalgebra::Point3<f64>>, ParseError> {
+    let (mut c, _, ds, line) = open(bytes, file)?;
+    if !matches!(ds.as_str(), "POLYDATA" | "UNSTRUCTURED_GRID") {
+        return Err(c.err_line(
+            line,
+            format!("dataset type {ds}; a point cloud is POLYDATA (or UNSTRUCTURED_GRID)"),
+        ));
+    }
+    while let Some((kw, line)) = c.token() {
+        if kw.eq_ignore_ascii_case("POINTS") {
+            let (n, _) = c.count("the number of points")?;
+            let (ty, _) = c.expect_token("the point data type")?;
+            let nv = n.checked_mul(3).ok_or_else(|| c.err_line(line, "point count too large"))?;
+            let data = c.values(nv, ty, line, "POINTS")?;
+            let array = Array { name: "Points".into(), ncomp: 3, data, loc: Location::Line(line) };
+            return super::vtu::points_of(file, n, &array);
+        }
+    }
+    Err(ParseError::new(file, Location::File, "no POINTS section: the file holds no points"))
+}
+
+/// Parses a legacy VTK unstructured grid (ASCII or big-endian BINARY).
+pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
+    let (mut c, space, ds, line) = open(bytes, file)?;
+    if ds != "UNSTRUCTURED_GRID" {
         return Err(c.err_line(
             line,
             format!("dataset type {ds}; only UNSTRUCTURED_GRID holds a volume mesh (convert it with ParaView or meshio)"),

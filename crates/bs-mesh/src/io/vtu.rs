@@ -163,6 +163,33 @@ fn cell_action(i: usize, t: i64) -> Result<CellAction, String> {
     })
 }
 
+/// The `npoints` points of a decoded points array (three components each).
+pub(crate) fn points_of(
+    file: &Path,
+    npoints: usize,
+    points: &Array,
+) -> Result<Vec<Point3<f64>>, ParseError> {
+    if Some(points.data.len()) != npoints.checked_mul(3) || points.ncomp != 3 {
+        return Err(ParseError::new(
+            file,
+            points.loc,
+            format!(
+                "points: expected {npoints} points with 3 components ({} values), found {} \
+                 values with {} components",
+                3 * npoints as u128,
+                points.data.len(),
+                points.ncomp
+            ),
+        ));
+    }
+    Ok((0..npoints)
+        .map(|i| {
+            let c = |k| points.data.get_f64(3 * i + k);
+            Point3::new(c(0), c(1), c(2))
+        })
+        .collect())
+}
+
 /// Builds the mesh and fields from decoded VTK arrays, mapping `node_id`, `element_id`,
 /// `nset:` and `elset:` arrays back.
 pub(crate) fn assemble(
@@ -174,24 +201,7 @@ pub(crate) fn assemble(
     cell_arrays: Vec<Array>,
 ) -> Result<(Mesh, Fields), ParseError> {
     let err = |loc: Location, msg: String| ParseError::new(file, loc, msg);
-    if Some(points.data.len()) != npoints.checked_mul(3) || points.ncomp != 3 {
-        return Err(err(
-            points.loc,
-            format!(
-                "points: expected {npoints} points with 3 components ({} values), found {} \
-                 values with {} components",
-                3 * npoints as u128,
-                points.data.len(),
-                points.ncomp
-            ),
-        ));
-    }
-    let nodes: Vec<Point3<f64>> = (0..npoints)
-        .map(|i| {
-            let c = |k| points.data.get_f64(3 * i + k);
-            Point3::new(c(0), c(1), c(2))
-        })
-        .collect();
+    let nodes = points_of(file, npoints, points)?;
     let cloc = cells.loc.unwrap_or(Location::File);
     let ncells = cells.types.len();
     if cells.offsets.len() != ncells {
@@ -730,6 +740,103 @@ pub(crate) fn parse_ascii(ty_is_float: bool, text: &str) -> Result<Data, String>
 
 /// Parses a VTU unstructured grid.
 pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
+    const SECTIONS: &[&str] = &["Points", "Cells", "PointData", "CellData"];
+    let xml = read_xml(bytes, file, "UnstructuredGrid", SECTIONS)?;
+    let err = |pos: usize, msg: String| ParseError::new(file, Location::Byte(pos), msg);
+    let (npoints, ncells) = (xml.count("NumberOfPoints", file)?, xml.count("NumberOfCells", file)?);
+    let mut points = None;
+    let mut cells = Cells { loc: Some(Location::Byte(xml.pos)), ..Default::default() };
+    let (mut pdata, mut cdata) = (Vec::new(), Vec::new());
+    for (section, a) in xml.arrays {
+        match section.as_str() {
+            "Points" => points = Some(a),
+            "Cells" => {
+                let ints = match a.data {
+                    Data::I(v) => v,
+                    Data::F(_) => {
+                        let pos = match a.loc {
+                            Location::Byte(p) => p,
+                            _ => xml.pos,
+                        };
+                        return Err(err(
+                            pos,
+                            format!(
+                                "DataArray '{}': cell arrays must have an integer type",
+                                a.name
+                            ),
+                        ));
+                    }
+                };
+                match a.name.as_str() {
+                    "connectivity" => cells.connectivity = ints,
+                    "offsets" => cells.offsets = ints,
+                    "types" => cells.types = ints,
+                    _ => {}
+                }
+            }
+            "PointData" => pdata.push(a),
+            "CellData" => cdata.push(a),
+            _ => {}
+        }
+    }
+    let points = points.ok_or_else(|| err(xml.pos, "<Points> has no DataArray".into()))?;
+    if cells.types.len() != ncells {
+        return Err(err(
+            xml.pos,
+            format!(
+                "NumberOfCells is {ncells} but the 'types' array has {} entries",
+                cells.types.len()
+            ),
+        ));
+    }
+    let (mesh, mut fields) = assemble(file, npoints, &points, &cells, pdata, cdata)?;
+    fields.field_data = xml.field_data;
+    Ok((mesh, fields))
+}
+
+/// The points of a VTK XML PolyData file (`.vtp`): its vertices, whatever cells it has.
+pub fn read_polydata_points(bytes: &[u8], file: &Path) -> Result<Vec<Point3<f64>>, ParseError> {
+    let xml = read_xml(bytes, file, "PolyData", &["Points"])?;
+    let n = xml.count("NumberOfPoints", file)?;
+    let (_, points) = xml.arrays.into_iter().find(|(s, _)| s == "Points").ok_or_else(|| {
+        ParseError::new(file, Location::Byte(xml.pos), "<Points> has no DataArray")
+    })?;
+    points_of(file, n, &points)
+}
+
+/// A VTK XML file of one piece with the arrays of some sections decoded: what the `.vtu`
+/// and `.vtp` readers share.
+pub(crate) struct XmlPiece {
+    /// The `<Piece>` element's attributes and byte offset.
+    attrs: HashMap<String, String>,
+    pos: usize,
+    /// The decoded arrays with the section each is in, in file order.
+    arrays: Vec<(String, Array)>,
+    /// The dataset's String field data (name, value), e.g. `SPACE`.
+    field_data: Vec<(String, String)>,
+}
+
+impl XmlPiece {
+    /// A count attribute of the piece.
+    fn count(&self, key: &str, file: &Path) -> Result<usize, ParseError> {
+        let err = |m: String| ParseError::new(file, Location::Byte(self.pos), m);
+        self.attrs
+            .get(key)
+            .ok_or_else(|| err(format!("<Piece> lacks the {key} attribute")))?
+            .trim()
+            .parse()
+            .map_err(|_| err(format!("<Piece> attribute {key} is not a count")))
+    }
+}
+
+/// Reads the markup of a VTK XML file of type `kind` and decodes the data arrays of
+/// `sections` (and the dataset's String field data).
+fn read_xml(
+    bytes: &[u8],
+    file: &Path,
+    kind: &str,
+    sections: &[&str],
+) -> Result<XmlPiece, ParseError> {
     let err = |pos: usize, msg: String| ParseError::new(file, Location::Byte(pos), msg);
     // The appended section is not XML (raw binary may hold anything): parse only the markup
     // before it and remember where its data starts.
@@ -760,7 +867,7 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
     let mut reader = quick_xml::Reader::from_reader(xml_src);
     let mut stack: Vec<String> = Vec::new();
     let mut layout = Layout { header64: false, zlib: false };
-    let mut piece: Option<(usize, usize, usize)> = None; // points, cells, position
+    let mut piece: Option<(HashMap<String, String>, usize)> = None; // attributes, position
     let mut arrays: Vec<RawArray> = Vec::new();
     let mut open_array = false;
     let mut saw_vtkfile = false;
@@ -798,13 +905,12 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
         match name.as_str() {
             "VTKFile" => {
                 saw_vtkfile = true;
-                if let Some(t) = at.get("type").filter(|t| *t != "UnstructuredGrid") {
-                    return Err(err(
-                        pos,
-                        format!(
-                            "VTK file of type '{t}'; only UnstructuredGrid (.vtu) holds a volume mesh"
-                        ),
-                    ));
+                if let Some(t) = at.get("type").filter(|t| *t != kind) {
+                    let holds = match kind {
+                        "UnstructuredGrid" => "only UnstructuredGrid (.vtu) holds a volume mesh",
+                        _ => "only PolyData (.vtp) holds a point cloud or a surface here",
+                    };
+                    return Err(err(pos, format!("VTK file of type '{t}'; {holds}")));
                 }
                 if at.get("byte_order").is_some_and(|b| b == "BigEndian") {
                     return Err(err(
@@ -835,16 +941,9 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
             }
             "Piece" => {
                 if piece.is_some() {
-                    return Err(err(pos, "VTU with several pieces; merge them into one (ParaView: Merge Blocks) before use".into()));
+                    return Err(err(pos, "VTK XML file with several pieces; merge them into one (ParaView: Merge Blocks) before use".into()));
                 }
-                let num = |k: &str| -> Result<usize, ParseError> {
-                    at.get(k)
-                        .ok_or_else(|| err(pos, format!("<Piece> lacks the {k} attribute")))?
-                        .trim()
-                        .parse()
-                        .map_err(|_| err(pos, format!("<Piece> attribute {k} is not a count")))
-                };
-                piece = Some((num("NumberOfPoints")?, num("NumberOfCells")?, pos));
+                piece = Some((at.clone(), pos));
             }
             "AppendedData" => {
                 if let Some(a) = appended.as_mut() {
@@ -863,13 +962,17 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
         }
     }
     if !saw_vtkfile {
-        return Err(ParseError::new(file, Location::File, "no <VTKFile> element: not a VTU file"));
+        return Err(ParseError::new(
+            file,
+            Location::File,
+            "no <VTKFile> element: not a VTK XML file",
+        ));
     }
-    let (npoints, ncells, piece_pos) = piece.ok_or_else(|| {
+    let (piece_attrs, piece_pos) = piece.ok_or_else(|| {
         ParseError::new(
             file,
             Location::File,
-            "no <Piece> element: the grid is empty or not an UnstructuredGrid",
+            format!("no <Piece> element: the dataset is empty or not of type {kind}"),
         )
     })?;
 
@@ -881,17 +984,12 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
     offsets.sort_unstable();
     offsets.dedup();
 
-    let mut points = None;
-    let mut cells = Cells { loc: Some(Location::Byte(piece_pos)), ..Default::default() };
-    let (mut pdata, mut cdata) = (Vec::new(), Vec::new());
+    let mut decoded = Vec::new();
     let mut field_data = Vec::new();
     for a in arrays {
-        // Arrays outside the grid's sections and the dataset's field data carry nothing
-        // the mesh needs.
-        if !matches!(
-            a.section.as_str(),
-            "Points" | "Cells" | "PointData" | "CellData" | "FieldData"
-        ) {
+        // Arrays outside the asked sections and the dataset's field data carry nothing the
+        // caller needs.
+        if a.section != "FieldData" && !sections.contains(&a.section.as_str()) {
             continue;
         }
         let ty = a.attrs.get("type").cloned().unwrap_or_default();
@@ -970,38 +1068,9 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
         };
         let name = a.attrs.get("Name").cloned().unwrap_or_default();
         let loc = Location::Byte(a.pos);
-        match a.section.as_str() {
-            "Points" => points = Some(Array { name, ncomp, data, loc }),
-            "Cells" => {
-                let ints = match data {
-                    Data::I(v) => v,
-                    Data::F(_) => return Err(fail("cell arrays must have an integer type".into())),
-                };
-                match name.as_str() {
-                    "connectivity" => cells.connectivity = ints,
-                    "offsets" => cells.offsets = ints,
-                    "types" => cells.types = ints,
-                    _ => {}
-                }
-            }
-            "PointData" => pdata.push(Array { name, ncomp, data, loc }),
-            "CellData" => cdata.push(Array { name, ncomp, data, loc }),
-            _ => {}
-        }
+        decoded.push((a.section, Array { name, ncomp, data, loc }));
     }
-    let points = points.ok_or_else(|| err(piece_pos, "<Points> has no DataArray".into()))?;
-    if cells.types.len() != ncells {
-        return Err(err(
-            piece_pos,
-            format!(
-                "NumberOfCells is {ncells} but the 'types' array has {} entries",
-                cells.types.len()
-            ),
-        ));
-    }
-    let (mesh, mut fields) = assemble(file, npoints, &points, &cells, pdata, cdata)?;
-    fields.field_data = field_data;
-    Ok((mesh, fields))
+    Ok(XmlPiece { attrs: piece_attrs, pos: piece_pos, arrays: decoded, field_data })
 }
 
 fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
