@@ -46,6 +46,7 @@ mod bench_update;
 mod bench_warp;
 mod chart;
 mod deps;
+mod fit;
 mod fuzz;
 mod ghost;
 mod plot;
@@ -88,6 +89,9 @@ Commands:
   ghost           the warped MNI152 T1 where the demo's brain moved away (the ghost of the old
                   cortex) and the exported field at the 50 most displaced nodes, for the identity
                   and the harmonic extension outside the brain
+  fit             fixture: the measurement-fit fixture (fixtures/fit: a truth, one degraded scan);
+                  study [--quick]: fits of degraded scans against the truth, imposing and no
+                  correction; writes docs/fit.md's table and chart (release)
   validate        [--quick] every reference case (closed forms, DR vs Newton, contact vs brute
                   force, DR + contact vs CalculiX); writes docs/validation.md (release)
   chart           [--case NAME] speed vs accuracy: mesh density, element, DR tolerance, contact
@@ -187,6 +191,8 @@ fn main() -> ExitCode {
         }
         Some("fuzz") => report(fuzz::main(&args[1..]), "fuzz"),
         Some("ghost") => report(ghost::main(), "ghost"),
+        Some("fit") if cfg!(debug_assertions) => rerun_in_release(&args),
+        Some("fit") => report(fit::main(&args[1..]), "fit"),
         Some("reference") => {
             report(reference::parse_args(&args[1..]).and_then(|o| reference::run(&o)), "reference")
         }

@@ -166,7 +166,7 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
             "converged in {} {} ({:.3} s preparation, {:.3} s solve of which {:.3} s contact, \
              {:.3} s total): error estimate {:.2e} {u_unit}, max displacement {:.4} {u_unit}, {} \
              nodes in contact, max penetration before correction {:.2e} {u_unit}; verified: min J \
-             {:.3}, equilibrium residual {:.1e} (bound {:.1e})\nwrote {}, {}, {}, {}{}{}\n",
+             {:.3}, equilibrium residual {:.1e} (bound {:.1e})\n{}wrote {}, {}, {}, {}{}{}{}\n",
             report.steps,
             if report.solver == "dr" { "steps" } else { "iterations" },
             report.prepare_seconds,
@@ -180,6 +180,12 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
             report.min_jacobian,
             report.equilibrium_residual,
             report.equilibrium_bound,
+            report
+                .measurements
+                .iter()
+                .enumerate()
+                .map(|(i, m)| measurement_line(i, m, u_unit) + "\n")
+                .collect::<String>(),
             written.vtu.display(),
             written.vtk.display(),
             written.csv.display(),
@@ -189,10 +195,44 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
                 .surfaces
                 .iter()
                 .map(|(_, vtk, stl)| format!(", {}, {}", vtk.display(), stl.display()))
-                .collect::<String>()
+                .collect::<String>(),
+            written.residuals.as_ref().map(|r| format!(", {}", r.display())).unwrap_or_default(),
         ));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// One line on what the fit of measurement `i` did.
+pub fn measurement_line(i: usize, m: &bs_scene::measure::MeasurementReport, u: &str) -> String {
+    let rigid = m.rigid.as_ref().map_or(String::new(), |r| {
+        let t = r.translation;
+        format!(
+            "; rigid correction {:.2} {u} and {:.2} degrees from {} bone points (RMS {:.2} -> \
+             {:.2} {u})",
+            (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt(),
+            r.angle_degrees,
+            r.bone_inliers,
+            r.bone_rms_before,
+            r.bone_rms_after
+        )
+    });
+    format!(
+        "[[measurement]] #{} {} on {}: {} of {} points inliers ({} outliers, {} on the patch \
+         border, {} farther than max_distance), residual RMS {:.3} {u} (max {:.3}); the data \
+         moved the surface up to {:.3} {u} (mean {:.3}){rigid}",
+        i + 1,
+        m.file,
+        m.nset,
+        m.inliers,
+        m.points,
+        m.outliers,
+        m.border,
+        m.far,
+        m.rms_residual,
+        m.max_residual,
+        m.max_pull,
+        m.mean_pull
+    )
 }
 
 /// The bundled default scene (the real-anatomy fixture) for `demo` and a bare `run`.

@@ -18,15 +18,21 @@
 //! * [`surface`]: a scanned surface (laser range scanner, stereo camera) fitted
 //!   point-to-surface on the exposed patch, density-independent weights per face;
 //! * [`rigid`]: the scan's rigid misalignment, estimated from points on bone;
-//! * [`robust`]: the scale estimate and the biweight.
+//! * [`robust`]: the scale estimate and the biweight;
+//! * [`synthetic`]: a sensor model (a known surface scanned with noise, partial coverage,
+//!   outliers and misalignment), for studies and tests.
 //!
 //! Architecture invariant: bs-fit knows points, triangles and bs-dr's data seam; it reads
 //! no files and knows no scene (bs-scene builds its terms), no elements and no solver
 //! internals.
 
+pub mod density;
+pub mod fits;
 pub mod rigid;
 pub mod robust;
 pub mod surface;
+pub mod synthetic;
 
+pub use fits::{Fits, Term};
 pub use rigid::{Rigid, RigidError, RigidFit, RigidParams, fit_rigid};
 pub use surface::{PointFit, PointStatus, SurfaceFit, SurfaceParams, surface_stiffness};

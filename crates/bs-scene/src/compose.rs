@@ -33,6 +33,8 @@ pub struct Composed {
     /// The length by which solver tolerances are scaled (largest prescribed displacement
     /// component, or the mesh diagonal without loads): bs-dr's tolerances are relative.
     pub load_scale: f64,
+    /// The measurements' data terms (fitted with the model), if the scene has any.
+    pub fit: Option<crate::measure::FitState>,
     /// The Newton–Krylov solver's preparation (its preconditioner), once computed
     /// (`solve::prepare_solver`); it depends only on the model and which components
     /// are prescribed, so it is kept for every solve of this composition.
@@ -102,7 +104,8 @@ pub fn compose_with(p: &Prepared, opts: &ComposeOptions) -> Result<Composed, Sce
     })?;
 
     let loads = loads_of(p, &p.prescribed)?;
-    let load_scale = bs_dr::load_scale(&model, &loads);
+    let fit = crate::measure::terms::compose_fits(p)?;
+    let load_scale = scale_of(&model, &loads, fit.as_ref());
 
     let slaves: Vec<usize> = p
         .mesh
@@ -137,7 +140,27 @@ pub fn compose_with(p: &Prepared, opts: &ComposeOptions) -> Result<Composed, Sce
         }
         _ => (None, None, None),
     };
-    Ok(Composed { model, loads, slaves, master, exact, contact, load_scale, preparation: None })
+    Ok(Composed {
+        model,
+        loads,
+        slaves,
+        master,
+        exact,
+        contact,
+        load_scale,
+        fit,
+        preparation: None,
+    })
+}
+
+/// The length by which tolerances are scaled: the largest prescribed displacement, or, when
+/// nothing prescribed moves and measurements pull, how far they pull (the largest matched
+/// residual at composition), else the mesh diagonal.
+pub fn scale_of(model: &Model, loads: &Loads, fit: Option<&crate::measure::FitState>) -> f64 {
+    match fit {
+        Some(f) if loads.max_prescribed() == 0.0 && f.reach > 0.0 => f.reach,
+        _ => bs_dr::load_scale(model, loads),
+    }
 }
 
 /// The solver's loads for the per-node prescribed components `prescribed` of the mesh of

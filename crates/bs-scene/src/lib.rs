@@ -50,6 +50,7 @@ mod error;
 pub mod findings;
 pub mod gap;
 mod loads;
+pub mod measure;
 pub mod memory;
 pub mod mesh_scene;
 pub mod output;

@@ -104,6 +104,9 @@ pub struct RunReport {
     pub units: &'static str,
     /// Anatomical frame of the mesh, the displacements and every output (`"RAS"`/`"LPS"`).
     pub space: &'static str,
+    /// Per `[[measurement]]`: what the fit did (points, inliers, residuals after the fit,
+    /// the rigid correction, how far the data moved the model). Empty without measurements.
+    pub measurements: Vec<crate::measure::MeasurementReport>,
 }
 
 /// Where the files of a run went.
@@ -121,6 +124,8 @@ pub struct Written {
     pub report: PathBuf,
     /// Per `[output] surfaces` entry: the set's name and its `.vtk` and `.stl` files.
     pub surfaces: Vec<(String, PathBuf, PathBuf)>,
+    /// residuals.csv (one row per measured point), when the scene has measurements.
+    pub residuals: Option<PathBuf>,
 }
 
 /// Timing and threading of a run that only the front end knows.
@@ -175,6 +180,7 @@ pub fn report(run: &Run, s: &Solved, ctx: RunContext) -> RunReport {
         threads: ctx.threads,
         units: p.scene.units.symbol(),
         space: p.scene.space.space().name(),
+        measurements: s.measurements.clone(),
     }
 }
 
@@ -210,6 +216,7 @@ pub fn write_outputs(
         csv: out.join("displacements.csv"),
         report: out.join("report.json"),
         surfaces: Vec::new(),
+        residuals: (!s.residuals.is_empty()).then(|| out.join("residuals.csv")),
     };
     for name in &p.scene.output.surfaces {
         let set = p.mesh.element_set(name).ok_or_else(|| SceneError::Write {
@@ -248,6 +255,15 @@ pub fn write_outputs(
         Ok(())
     })
     .map_err(|e| io(&written.csv)(&e))?;
+    let residuals = out.join("residuals.csv");
+    if written.residuals.is_some() {
+        let text = crate::measure::outcome::residuals_csv(&s.residuals);
+        write_atomic(&residuals, |w| w.write_all(text.as_bytes()))
+            .map_err(|e| io(&residuals)(&e))?;
+    } else if residuals.is_file() {
+        // An earlier fit's residuals would be taken for this run's.
+        std::fs::remove_file(&residuals).map_err(|e| io(&residuals)(&e))?;
+    }
     let json = serde_json::to_string_pretty(report).map_err(|e| io(&written.report)(&e))?;
     write_atomic(&written.report, |w| writeln!(w, "{json}"))
         .map_err(|e| io(&written.report)(&e))?;

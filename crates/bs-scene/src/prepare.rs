@@ -32,6 +32,8 @@ pub struct Prepared {
     pub warnings: Vec<String>,
     /// One line per intra-operative load (surface, landmarks) or sphere/mask selection.
     pub loads: Vec<String>,
+    /// The `[[measurement]]` tables with their files read (fitted, not imposed).
+    pub measurements: Vec<crate::measure::Measured>,
 }
 
 impl Prepared {
@@ -119,8 +121,17 @@ impl Prepared {
                 });
             }
         };
+        let measurements = crate::measure::read::read_measurements(
+            &sp,
+            &scene,
+            &mesh,
+            &prescribed,
+            skull.as_ref(),
+        )?;
+        let mut load_notes = load_notes;
+        load_notes.extend(measurements.iter().map(crate::measure::Measured::note));
         let n_constrained = prescribed.iter().filter(|p| p.iter().any(Option::is_some)).count();
-        if n_constrained == 0 && skull.is_none() {
+        if n_constrained == 0 && skull.is_none() && measurements.is_empty() {
             return Err(SceneError::Unsupported {
                 scene: sp,
                 message: "nothing to compute: no node has a prescribed or fixed displacement \
@@ -128,7 +139,7 @@ impl Prepared {
                     .into(),
             });
         }
-        if !prescribed.iter().flatten().flatten().any(|v| *v != 0.0) {
+        if measurements.is_empty() && !prescribed.iter().flatten().flatten().any(|v| *v != 0.0) {
             return Err(SceneError::Unsupported {
                 scene: sp,
                 message: "nothing to compute: no boundary condition moves a node (every \
@@ -166,6 +177,7 @@ impl Prepared {
             skull,
             warnings,
             loads: load_notes,
+            measurements,
         };
         prepared.require_supported()?;
         Ok(prepared)
@@ -181,6 +193,13 @@ impl Prepared {
                 "[solver] kind = \"newton\" does not support element = \"t4anp\" (its \
                      tangent is not assembled); use kind = \"newton-krylov\" (the default) or \
                      element = \"t4\""
+                    .into(),
+            );
+        }
+        if self.scene.solver.kind == SolverKind::Newton && !self.measurements.is_empty() {
+            return unsupported(
+                "[solver] kind = \"newton\" does not fit [[measurement]] data; use kind = \
+                 \"newton-krylov\" (the default) or \"dr\""
                     .into(),
             );
         }

@@ -9,6 +9,7 @@ use bs_dr::{Progress, Solution};
 
 use crate::SceneError;
 use crate::compose::{Composed, compose};
+use crate::measure::{MeasurementReport, PointRow};
 use crate::prepare::Prepared;
 use crate::solve::{SolveSettings, prepare_solver, solve_composed};
 use crate::verify::{Verification, verify};
@@ -37,6 +38,35 @@ pub struct Solved {
     pub verification: Verification,
     /// Wall time from known displacements to the verified result (seconds).
     pub solve_seconds: f64,
+    /// Per `[[measurement]]`: what the fit did (empty without measurements).
+    pub measurements: Vec<MeasurementReport>,
+    /// Per measured point: its residual, weight and status (residuals.csv).
+    pub residuals: Vec<PointRow>,
+}
+
+impl Solved {
+    /// The verified result of `solution` on `run`'s scene, with its measurements' outcome.
+    pub(crate) fn new(
+        prepared: &Prepared,
+        composed: &Composed,
+        solution: Solution,
+        max_penetration_before: f64,
+        verification: Verification,
+        solve_seconds: f64,
+    ) -> Solved {
+        let (measurements, residuals) = match &composed.fit {
+            Some(f) => crate::measure::outcome::outcome(prepared, f, &solution.displacements),
+            None => (Vec::new(), Vec::new()),
+        };
+        Solved {
+            solution,
+            max_penetration_before,
+            verification,
+            solve_seconds,
+            measurements,
+            residuals,
+        }
+    }
 }
 
 impl Run {
@@ -63,11 +93,8 @@ impl Run {
             &solution.displacements,
             self.settings.tolerance,
         )?;
-        Ok(Solved {
-            solution,
-            max_penetration_before,
-            verification,
-            solve_seconds: started.elapsed().as_secs_f64(),
-        })
+        let seconds = started.elapsed().as_secs_f64();
+        let (p, c) = (&self.prepared, &self.composed);
+        Ok(Solved::new(p, c, solution, max_penetration_before, verification, seconds))
     }
 }

@@ -302,6 +302,101 @@ pub struct Boundary {
     pub max_extrapolation: Option<f64>,
 }
 
+/// The landmark files of a `[[measurement]]`: one file of pairs (`.csv` with
+/// `x,y,z,x2,y2,z2`, or an MNI `.tag` file with two volumes), or two files of points paired
+/// by label (3D Slicer markups `.fcsv` / `.mrk.json`: pre-operative, intra-operative).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(untagged)]
+pub enum LandmarkFiles {
+    /// One file of pairs.
+    Pairs(PathBuf),
+    /// Pre-operative and intra-operative points, paired by label.
+    Split([PathBuf; 2]),
+}
+
+impl LandmarkFiles {
+    /// The files, for messages and path resolution.
+    pub fn files_mut(&mut self) -> Vec<&mut PathBuf> {
+        match self {
+            LandmarkFiles::Pairs(f) => vec![f],
+            LandmarkFiles::Split([a, b]) => vec![a, b],
+        }
+    }
+}
+
+/// Default of a measurement's `max_distance`, in mm: scanned points farther than this from
+/// the brain's exposed surface are not matched.
+pub const DEFAULT_MEASUREMENT_DISTANCE_MM: f64 = 20.0;
+
+/// An intra-operative measurement fitted with the model as the regulariser (not imposed):
+/// a scanned surface or landmark pairs.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Measurement {
+    /// The exposed brain surface as measured: a point cloud (.csv with columns x,y,z, .ply,
+    /// .vtk/.vtp polydata, or the vertices of .stl/.obj/.off), in the scene's frame and units.
+    pub points: Option<PathBuf>,
+    /// Landmark pairs (pre-operative → intra-operative positions) anywhere in the brain.
+    pub landmarks: Option<LandmarkFiles>,
+    /// The boundary nodes the measurement may pull (points: the exposed surface; landmarks:
+    /// where the unknown load acts, the craniotomy).
+    pub nset: Option<String>,
+    /// The measurement's noise: the standard deviation of a point's error, mesh units.
+    pub sigma: f64,
+    /// Points the same scan took on the bone around the window (they do not move): the
+    /// evidence for `rigid`.
+    pub skull_points: Option<PathBuf>,
+    /// Also estimate (and undo) a rigid misalignment of the scan, from `skull_points`.
+    #[serde(default)]
+    pub rigid: bool,
+    /// Scanned points farther than this from the exposed surface are not matched (mesh
+    /// units; default 20 mm).
+    pub max_distance: Option<f64>,
+}
+
+impl Measurement {
+    /// Checks what the types cannot: one kind of data, its keys, positive numbers.
+    pub fn validate(&self) -> Result<(), String> {
+        match (&self.points, &self.landmarks) {
+            (Some(_), Some(_)) | (None, None) => {
+                return Err("give exactly one of points (a scanned surface) or landmarks".into());
+            }
+            (Some(_), None) if self.nset.is_none() => {
+                return Err("points needs nset: the boundary nodes the scan may pull (e.g. \
+                            nset = \"CRANIOTOMY\")"
+                    .into());
+            }
+            (None, Some(_)) if self.skull_points.is_some() || self.rigid => {
+                return Err("skull_points and rigid go with points (a scan), not landmarks".into());
+            }
+            _ => {}
+        }
+        if !(self.sigma > 0.0 && self.sigma.is_finite()) {
+            return Err(format!(
+                "sigma must be positive (the measurement's noise, mesh units), got {}",
+                self.sigma
+            ));
+        }
+        if let Some(d) = self.max_distance
+            && !(d > 0.0 && d.is_finite())
+        {
+            return Err(format!("max_distance must be positive (mesh units), got {d}"));
+        }
+        if self.rigid && self.skull_points.is_none() {
+            return Err("rigid = true needs skull_points: the misalignment is estimated from \
+                        bone, which does not move; fitted to the brain alone it would explain \
+                        the shift as misalignment (docs/fit.md)"
+                .into());
+        }
+        if self.skull_points.is_some() && !self.rigid {
+            return Err("skull_points are only used to estimate the misalignment: add rigid = \
+                        true, or drop skull_points"
+                .into());
+        }
+        Ok(())
+    }
+}
+
 /// Contact handler names.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -451,6 +546,9 @@ pub struct Scene {
     /// Boundary conditions.
     #[serde(rename = "boundary", default)]
     pub boundaries: Vec<Boundary>,
+    /// Intra-operative measurements fitted with the model.
+    #[serde(rename = "measurement", default)]
+    pub measurements: Vec<Measurement>,
     /// The skull; none means no contact.
     pub contact: Option<Contact>,
     /// Solver settings.
@@ -477,6 +575,16 @@ impl Scene {
                 .into_iter()
                 .flatten()
             {
+                *f = dir.join(&*f);
+            }
+        }
+        for m in &mut scene.measurements {
+            let mut files: Vec<&mut PathBuf> =
+                [&mut m.points, &mut m.skull_points].into_iter().flatten().collect();
+            if let Some(l) = &mut m.landmarks {
+                files.extend(l.files_mut());
+            }
+            for f in files {
                 *f = dir.join(&*f);
             }
         }
@@ -608,6 +716,9 @@ impl Scene {
                     ));
                 }
             }
+        }
+        for (i, m) in scene.measurements.iter().enumerate() {
+            m.validate().map_err(|e| format!("[[measurement]] #{}: {e}", i + 1))?;
         }
         if !(scene.solver.tolerance > 0.0 && scene.solver.tolerance.is_finite()) {
             return Err(format!(

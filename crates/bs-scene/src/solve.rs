@@ -50,7 +50,14 @@ impl SolveSettings {
 
 /// The Newton–Krylov solver for settings `s` on composition `c`.
 fn newton_krylov(c: &Composed, s: &SolveSettings) -> NewtonKrylov {
-    newton_krylov_params(s, c.load_scale)
+    newton_krylov_params(s, solver_scale(c))
+}
+
+/// The length bs-dr scales its relative tolerances by ([`bs_dr::load_scale`]: the largest
+/// prescribed displacement, or the mesh diagonal). The scene's tolerance is absolute; the
+/// composition's `load_scale` (how far measurements pull) is for the verification only.
+fn solver_scale(c: &Composed) -> f64 {
+    bs_dr::load_scale(&c.model, &c.loads)
 }
 
 fn newton_krylov_params(s: &SolveSettings, load_scale: f64) -> NewtonKrylov {
@@ -106,7 +113,8 @@ pub fn solve_composed_from(
     observer: &mut dyn FnMut(&Progress),
 ) -> Result<(Solution, f64), SolveError> {
     let start = warm.map(|w| w.state);
-    let relative = s.tolerance / c.load_scale;
+    let scale = solver_scale(c);
+    let relative = s.tolerance / scale;
     let mut max_penetration = 0.0f64;
     let mut observe = |pr: &Progress| {
         max_penetration = max_penetration.max(pr.contact.max_penetration);
@@ -122,11 +130,16 @@ pub fn solve_composed_from(
         Some(sc) => sc,
         None => &mut none,
     };
+    let mut no_data = bs_dr::NoData;
+    let data: &mut dyn bs_dr::DataTerm = match &mut c.fit {
+        Some(f) => &mut f.fits,
+        None => &mut no_data,
+    };
     let solution = match s.kind {
         SolverKind::NewtonKrylov => {
             let prep = c.preparation.as_ref().expect("prepared above");
-            newton_krylov_params(s, c.load_scale)
-                .solve_prepared_warm(&c.model, &c.loads, prep, warm, contact, &mut observe)
+            newton_krylov_params(s, scale)
+                .solve_prepared_fit(&c.model, &c.loads, prep, warm, contact, data, &mut observe)
                 .map(Solution::into_common)
                 .map_err(SolveError::from)
         }
@@ -141,13 +154,10 @@ pub fn solve_composed_from(
                 ramp_steps: s.ramp_steps,
                 ..defaults
             });
-            match start {
-                Some(u) => dr
-                    .solve_from(&c.model, u, &c.loads, contact, &mut observe)
-                    .map(Solution::into_common)
-                    .map_err(SolveError::from),
-                None => Solver::solve(&dr, &c.model, &c.loads, contact, &mut observe),
-            }
+            let zero = vec![bs_mesh::Vector3::zeros(); c.model.node_count()];
+            dr.solve_fit(&c.model, start.unwrap_or(&zero), &c.loads, contact, data, &mut observe)
+                .map(Solution::into_common)
+                .map_err(SolveError::from)
         }
         SolverKind::Newton if start.is_some() => Err(SolveError::Unsupported {
             solver: "newton",
@@ -160,5 +170,17 @@ pub fn solve_composed_from(
             Solver::solve(&newton, &c.model, &c.loads, contact, &mut observe)
         }
     }?;
+    relinearise_at(c, &solution.displacements);
     Ok((solution, max_penetration))
+}
+
+/// The measurements linearised at the answer `u`: their springs (the data forces the
+/// verification balances) and their per-point state (what the reports say) are those of
+/// the answer.
+fn relinearise_at(c: &mut Composed, u: &[bs_mesh::Vector3<f64>]) {
+    let Some(fit) = &mut c.fit else { return };
+    let positions: Vec<bs_mesh::Point3<f64>> =
+        c.model.reference().iter().zip(u).map(|(x, d)| x + d).collect();
+    bs_dr::DataTerm::linearise(&mut fit.fits, &positions, &mut fit.springs);
+    fit.fits.classify(&positions);
 }

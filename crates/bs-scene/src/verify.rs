@@ -171,7 +171,17 @@ fn out_of_balance(c: &Composed, u: &[Vector3<f64>], in_contact: &[f64]) -> (f64,
     if c.model.internal_forces_into(u, &mut ws, &mut f).is_err() {
         return (f64::INFINITY, 0); // an inverted element: refused before this by J
     }
+    // Measurements are loads: their forces at the answer join the balance, and the largest
+    // of them counts as a reaction does.
     let mut reaction = 0.0f64;
+    if let Some(fit) = &c.fit {
+        let mut data = vec![Vector3::zeros(); c.model.node_count()];
+        fit.springs.add_forces_into(c.model.reference(), u, 1.0, &mut data);
+        for (fi, di) in f.iter_mut().zip(&data) {
+            reaction = reaction.max(di.norm());
+            *fi += di;
+        }
+    }
     let mut worst = (0.0f64, 0usize);
     for (n, fi) in f.iter().enumerate() {
         let mut free = Vector3::zeros();

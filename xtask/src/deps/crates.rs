@@ -26,7 +26,16 @@ pub const ALLOWED: &[(&str, &[&str])] = &[
     ("bs-py", &["bs-mesh", "bs-contact", "bs-scene", "bs-image"]),
     (
         "xtask",
-        &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-scene", "bs-image", "bs-meshgen"],
+        &[
+            "bs-mesh",
+            "bs-material",
+            "bs-dr",
+            "bs-contact",
+            "bs-fit",
+            "bs-scene",
+            "bs-image",
+            "bs-meshgen",
+        ],
     ),
 ];
 

@@ -8,8 +8,6 @@
 use bs_mesh::Vector3;
 
 use super::problem::Problem;
-use crate::contact::Contact;
-use crate::data::DataTerm;
 use crate::dr::{DrError, DrInfo, DrParams, DynamicRelaxation};
 use crate::solver::{Progress, Solution};
 
@@ -30,7 +28,7 @@ pub(crate) fn dynamic_relaxation(
     start: &[Vector3<f64>],
     done: f64,
     offset: usize,
-    (contact, data, observer): (&mut dyn Contact, &mut dyn DataTerm, &mut dyn FnMut(&Progress)),
+    (contact, data, observer): super::Seams<'_, '_, '_>,
 ) -> Result<Solution<DrInfo>, DrError> {
     let tolerance = FALLBACK_MARGIN * pb.params.tolerance;
     let dr = DynamicRelaxation::new(DrParams { tolerance, ..DrParams::default() });

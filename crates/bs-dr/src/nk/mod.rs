@@ -176,7 +176,8 @@ pub(crate) struct Work {
 }
 
 /// The contact handler, the measurements and the progress observer of a solve.
-type Seams<'a, 'b, 'c> = (&'a mut dyn Contact, &'c mut dyn DataTerm, &'b mut dyn FnMut(&Progress));
+pub(crate) type Seams<'a, 'b, 'c> =
+    (&'a mut dyn Contact, &'c mut dyn DataTerm, &'b mut dyn FnMut(&Progress));
 
 impl NewtonKrylov {
     /// A solver with the given parameters.

@@ -108,12 +108,9 @@ impl Session {
         let contact = solution.report.contact.nodes_in_contact;
         history.advance(last, &run.prepared.prescribed, contact);
         *warm = true;
-        Ok(Solved {
-            solution,
-            max_penetration_before,
-            verification,
-            solve_seconds: start.elapsed().as_secs_f64(),
-        })
+        let seconds = start.elapsed().as_secs_f64();
+        let (p, c) = (&run.prepared, &run.composed);
+        Ok(Solved::new(p, c, solution, max_penetration_before, verification, seconds))
     }
 
     /// Sets the new measurements `loads` (other prescribed boundaries keep their last
@@ -226,7 +223,7 @@ impl Session {
         }
         let loads = loads_of(p, &prescribed)?;
         let c = &mut self.run.composed;
-        c.load_scale = bs_dr::load_scale(&c.model, &loads);
+        c.load_scale = crate::compose::scale_of(&c.model, &loads, c.fit.as_ref());
         c.loads = loads;
         Ok(std::mem::replace(&mut self.run.prepared.prescribed, prescribed))
     }

@@ -1,0 +1,162 @@
+//! What a fit did, per measurement: report.json's `measurements` entries (points read,
+//! matched, inliers, the residuals after the fit, the rigid correction, how far the data
+//! moved the model) and residuals.csv's rows (one per point: position, residual, weight,
+//! status).
+
+use bs_fit::{PointStatus, Term};
+use bs_mesh::Vector3;
+use serde::{Deserialize, Serialize};
+
+use super::{FitState, MeasuredData};
+use crate::prepare::Prepared;
+
+/// The rigid correction of a scan, `x ↦ R x + t` (scene frame and units).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RigidReport {
+    /// Unit rotation axis.
+    pub axis: [f64; 3],
+    /// Rotation angle, degrees.
+    pub angle_degrees: f64,
+    /// Translation `t`.
+    pub translation: [f64; 3],
+    /// Bone points matched to the skull, and those inside the robust cut-off.
+    pub bone_points: usize,
+    pub bone_inliers: usize,
+    /// RMS distance of the bone inliers to the skull before and after the correction.
+    pub bone_rms_before: f64,
+    pub bone_rms_after: f64,
+}
+
+/// One measurement after the fit (report.json's `measurements` entries).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MeasurementReport {
+    /// `"points"`.
+    pub kind: String,
+    /// The data file.
+    pub file: String,
+    /// The node set it pulled.
+    pub nset: String,
+    /// The noise it was given, and the robust scale at the answer (≥ sigma).
+    pub sigma: f64,
+    pub scale: f64,
+    /// Points read; matched on the patch; inside the robust cut-off; rejected as outliers;
+    /// on the patch's border (no evidence); farther than max_distance.
+    pub points: usize,
+    pub matched: usize,
+    pub inliers: usize,
+    pub outliers: usize,
+    pub border: usize,
+    pub far: usize,
+    /// RMS and largest distance of the inliers from the fitted surface.
+    pub rms_residual: f64,
+    pub max_residual: f64,
+    /// The data stiffness per area (Pa per length unit) and the area it covered.
+    pub stiffness: f64,
+    pub covered_area: f64,
+    /// The rigid correction, when one was estimated.
+    pub rigid: Option<RigidReport>,
+    /// How far the data moved the model: the largest and mean displacement of the nodes
+    /// the measurement pulls.
+    pub max_pull: f64,
+    pub mean_pull: f64,
+}
+
+/// One point of residuals.csv.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PointRow {
+    /// The measurement (from 1, as in the scene's order) and the point (from 0).
+    pub measurement: usize,
+    pub point: usize,
+    /// The point as read, and after the rigid correction.
+    pub measured: [f64; 3],
+    pub corrected: [f64; 3],
+    /// Signed distance from the fitted surface (positive outside the brain).
+    pub residual: f64,
+    /// Robust weight in [0, 1].
+    pub weight: f64,
+    /// `inlier`, `outlier`, `border` or `far`.
+    pub status: &'static str,
+}
+
+/// The reports and rows of every measurement at displacements `u`.
+pub fn outcome(
+    p: &Prepared,
+    state: &FitState,
+    u: &[Vector3<f64>],
+) -> (Vec<MeasurementReport>, Vec<PointRow>) {
+    let mut reports = Vec::new();
+    let mut rows = Vec::new();
+    for (k, (m, term)) in p.measurements.iter().zip(&state.fits.terms).enumerate() {
+        let (MeasuredData::Surface { file, points, .. }, Term::Surface(fit)) = (&m.data, term);
+        let count = |s: PointStatus| fit.fits().iter().filter(|f| f.status == s).count();
+        let inl: Vec<f64> = fit
+            .fits()
+            .iter()
+            .filter(|f| f.status == PointStatus::Inlier)
+            .map(|f| f.residual)
+            .collect();
+        let rms = (inl.iter().map(|r| r * r).sum::<f64>() / inl.len().max(1) as f64).sqrt();
+        let pulls: Vec<f64> = fit.patch_nodes().iter().map(|&a| u[a].norm()).collect();
+        let rigid = state.rigid[k].map(|r| {
+            let (axis, angle) = r.rigid.axis_angle_degrees();
+            RigidReport {
+                axis: axis.into(),
+                angle_degrees: angle,
+                translation: r.rigid.translation.into(),
+                bone_points: r.matched,
+                bone_inliers: r.inliers,
+                bone_rms_before: r.rms_before,
+                bone_rms_after: r.rms_after,
+            }
+        });
+        let (inliers, outliers) = (count(PointStatus::Inlier), count(PointStatus::Outlier));
+        reports.push(MeasurementReport {
+            kind: "points".into(),
+            file: file.display().to_string(),
+            nset: m.nset.clone(),
+            sigma: m.sigma,
+            scale: fit.scale(),
+            points: points.len(),
+            matched: inliers + outliers,
+            inliers,
+            outliers,
+            border: count(PointStatus::Border),
+            far: count(PointStatus::Far),
+            rms_residual: rms,
+            max_residual: inl.iter().map(|r| r.abs()).fold(0.0, f64::max),
+            stiffness: state.stiffness[k],
+            covered_area: state.covered_area[k],
+            rigid,
+            max_pull: pulls.iter().copied().fold(0.0, f64::max),
+            mean_pull: pulls.iter().sum::<f64>() / pulls.len().max(1) as f64,
+        });
+        for (i, (q, f)) in points.iter().zip(fit.fits()).enumerate() {
+            rows.push(PointRow {
+                measurement: k + 1,
+                point: i,
+                measured: q.coords.into(),
+                corrected: fit.points()[i].coords.into(),
+                residual: f.residual,
+                weight: f.weight,
+                status: f.status.name(),
+            });
+        }
+    }
+    (reports, rows)
+}
+
+/// residuals.csv's text: a header, then one line per point.
+pub fn residuals_csv(rows: &[PointRow]) -> String {
+    let mut s = String::from(
+        "measurement,point,x,y,z,x_corrected,y_corrected,z_corrected,residual,weight,status\n",
+    );
+    for r in rows {
+        let [x, y, z] = r.measured;
+        let [a, b, c] = r.corrected;
+        s += &format!(
+            "{},{},{x},{y},{z},{a},{b},{c},{},{},{}\n",
+            r.measurement, r.point, r.residual, r.weight, r.status
+        );
+    }
+    s
+}

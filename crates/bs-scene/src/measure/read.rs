@@ -1,0 +1,232 @@
+//! The `[[measurement]]` tables resolved at preparation: files read, the node set turned
+//! into the patch of boundary faces a scan is matched on, and everything checked that can
+//! be checked before solving (so `check` refuses what `run` would): an empty or unreadable
+//! cloud, a node set off the boundary or already prescribed, bone points without a skull,
+//! and data in the wrong frame or units (no point near the patch: every point would be an
+//! outlier).
+
+use std::path::Path;
+
+use bs_contact::Patch;
+use bs_mesh::{Mesh, Point3, TriSurface};
+
+use super::{Measured, MeasuredData};
+use crate::SceneError;
+use crate::boundary::{Prescribed, names};
+use crate::scene::{DEFAULT_MEASUREMENT_DISTANCE_MM, Measurement, Scene};
+
+/// Reads and checks every measurement of `scene` on `mesh`; `prescribed` are the
+/// boundaries' components (a fitted node must be free).
+pub(crate) fn read_measurements(
+    sp: &Path,
+    scene: &Scene,
+    mesh: &Mesh,
+    prescribed: &Prescribed,
+    skull: Option<&TriSurface>,
+) -> Result<Vec<Measured>, SceneError> {
+    scene
+        .measurements
+        .iter()
+        .enumerate()
+        .map(|(i, m)| read_one(sp, scene, mesh, prescribed, skull, i, m))
+        .collect()
+}
+
+fn read_one(
+    sp: &Path,
+    scene: &Scene,
+    mesh: &Mesh,
+    prescribed: &Prescribed,
+    skull: Option<&TriSurface>,
+    i: usize,
+    m: &Measurement,
+) -> Result<Measured, SceneError> {
+    let key = |k: &str| format!("[[measurement]] #{} {k}", i + 1);
+    let max_distance =
+        m.max_distance.unwrap_or(DEFAULT_MEASUREMENT_DISTANCE_MM * 1e-3 / scene.units.metres());
+    let nset = m.nset.clone().unwrap_or_default();
+    let Some(file) = &m.points else {
+        return Err(SceneError::Unsupported {
+            scene: sp.to_path_buf(),
+            message: format!(
+                "{}: fitting landmarks is not available in this version; impose them with a \
+                 [[boundary]] landmarks = ... instead",
+                key("landmarks")
+            ),
+        });
+    };
+    let (faces, face_elements) = patch_faces(sp, scene, mesh, prescribed, &key("nset"), &nset)?;
+    let points = read_cloud(sp, &key("points"), file)?;
+    check_frame(sp, scene, mesh, &key("points"), file, &points, &faces, max_distance)?;
+    let bone = match &m.skull_points {
+        None => None,
+        Some(f) => {
+            if skull.is_none() {
+                return Err(SceneError::Read {
+                    scene: sp.to_path_buf(),
+                    key: key("skull_points"),
+                    message: "bone points are registered to the skull, but the scene has no \
+                              [contact] skull; add one"
+                        .into(),
+                });
+            }
+            Some((f.clone(), read_cloud(sp, &key("skull_points"), f)?))
+        }
+    };
+    Ok(Measured {
+        index: i,
+        nset,
+        sigma: m.sigma,
+        max_distance,
+        rigid: m.rigid,
+        data: MeasuredData::Surface { file: file.clone(), points, faces, face_elements, bone },
+    })
+}
+
+/// A point cloud, refused when empty.
+fn read_cloud(sp: &Path, key: &str, file: &Path) -> Result<Vec<Point3<f64>>, SceneError> {
+    let err = |message: String| SceneError::Read {
+        scene: sp.to_path_buf(),
+        key: key.to_string(),
+        message,
+    };
+    let points = bs_mesh::io::points::read_points(file).map_err(|e| err(e.to_string()))?;
+    if points.is_empty() {
+        return Err(err(format!("{}: the file holds no points", file.display())));
+    }
+    Ok(points)
+}
+
+/// The boundary faces whose three nodes are in the node set `name` (outward triangles of
+/// mesh node indices) and the element of each; errors when the set is unknown, off the
+/// boundary, or holds prescribed nodes.
+fn patch_faces(
+    sp: &Path,
+    scene: &Scene,
+    mesh: &Mesh,
+    prescribed: &Prescribed,
+    key: &str,
+    name: &str,
+) -> Result<(Vec<[usize; 3]>, Vec<usize>), SceneError> {
+    let err = |message: String| SceneError::Set {
+        scene: sp.to_path_buf(),
+        key: key.to_string(),
+        set: name.to_string(),
+        message,
+    };
+    let nodes = mesh.node_set(name).ok_or_else(|| {
+        err(format!(
+            "no such node set in {} (it has: {})",
+            scene.mesh.file.display(),
+            names(mesh.node_sets.keys())
+        ))
+    })?;
+    let mut member = vec![false; mesh.nodes.len()];
+    for &n in nodes {
+        member[n] = true;
+    }
+    if let Some(&n) = nodes.iter().find(|&&n| prescribed[n].iter().any(Option::is_some)) {
+        return Err(err(format!(
+            "node {} is also held by a [[boundary]]: a measurement pulls free nodes (the fit \
+             decides where they go); take the measured nodes out of the boundary's set",
+            mesh.node_ids[n]
+        )));
+    }
+    let boundary = mesh.boundary();
+    let mut faces = Vec::new();
+    let mut elements = Vec::new();
+    for (t, &e) in boundary.surface.triangles.iter().zip(&boundary.element) {
+        let f = t.map(|k| boundary.volume_node[k]);
+        if f.iter().all(|&n| member[n]) {
+            faces.push(f);
+            elements.push(e);
+        }
+    }
+    if faces.is_empty() {
+        return Err(err(format!(
+            "no boundary face of {} has all three nodes in the set: a measurement's node set \
+             must be a patch of the brain's surface (e.g. the craniotomy's exposed nodes)",
+            scene.mesh.file.display()
+        )));
+    }
+    Ok((faces, elements))
+}
+
+/// Refuses data of which no point lies within `max_distance` of the patch (reference
+/// configuration): a scan in the wrong frame or units, where every point would be an
+/// outlier. Says which reading would fit: LPS ↔ RAS, or metres.
+#[allow(clippy::too_many_arguments)]
+fn check_frame(
+    sp: &Path,
+    scene: &Scene,
+    mesh: &Mesh,
+    key: &str,
+    file: &Path,
+    points: &[Point3<f64>],
+    faces: &[[usize; 3]],
+    max_distance: f64,
+) -> Result<(), SceneError> {
+    let mut local = std::collections::HashMap::new();
+    let mut vertices = Vec::new();
+    let tris: Vec<[u32; 3]> = faces
+        .iter()
+        .map(|f| {
+            f.map(|a| {
+                *local.entry(a).or_insert_with(|| {
+                    vertices.push(mesh.nodes[a]);
+                    (vertices.len() - 1) as u32
+                })
+            })
+        })
+        .collect();
+    let patch = Patch::new(vertices, tris);
+    let near = |map: &dyn Fn(&Point3<f64>) -> Point3<f64>| {
+        points.iter().filter(|p| patch.closest(&map(p), max_distance).is_some()).count()
+    };
+    if near(&|p| *p) > 0 {
+        return Ok(());
+    }
+    let nearest = points
+        .iter()
+        .filter_map(|p| patch.closest(p, f64::INFINITY))
+        .map(|q| q.distance)
+        .fold(f64::INFINITY, f64::min);
+    let mut hints = Vec::new();
+    let flipped = near(&|p| Point3::new(-p.x, -p.y, p.z));
+    if flipped > 0 {
+        let other = match scene.space {
+            crate::scene::SpaceName::Ras => "LPS",
+            crate::scene::SpaceName::Lps => "RAS",
+        };
+        hints.push(format!(
+            "read as {other} (x and y negated) {flipped} of them would be: convert the scan to \
+             the scene's frame"
+        ));
+    }
+    for (factor, what) in [(1e3, "metres"), (1e-3, "micrometres")] {
+        let scaled = near(&|p| Point3::from(p.coords * factor));
+        if scaled > 0 {
+            hints.push(format!(
+                "scaled from {what} to the scene's unit {scaled} of them would be: convert it"
+            ));
+        }
+    }
+    let hint = if hints.is_empty() {
+        "check the scan's frame (the scene is ".to_string()
+            + scene.space.space().name()
+            + ") and units, and the node set"
+    } else {
+        hints.join("; ")
+    };
+    Err(SceneError::Read {
+        scene: sp.to_path_buf(),
+        key: key.to_string(),
+        message: format!(
+            "{}: none of its {} points lies within max_distance = {max_distance} of the \
+             measured patch (the nearest is {nearest:.1} away): every point would be an \
+             outlier; {hint}",
+            file.display(),
+            points.len()
+        ),
+    })
+}

@@ -1,0 +1,121 @@
+//! Composition: the prepared measurements become bs-fit's data terms. A scan with bone
+//! points first has its rigid misalignment estimated against the skull and undone; each
+//! scan's data stiffness comes from the shear modulus of the tissue under it, its noise and
+//! the area it covers ([`bs_fit::surface_stiffness`]).
+
+use bs_contact::Patch;
+use bs_dr::{DataTerm, Springs};
+use bs_fit::{Fits, RigidFit, RigidParams, SurfaceFit, SurfaceParams, Term};
+use bs_mesh::{Point3, TriSurface};
+
+use super::{Measured, MeasuredData};
+use crate::SceneError;
+use crate::prepare::Prepared;
+
+/// The prior of the rigid fit, in mm and degrees: several times a navigation system's
+/// registration error (1–2 mm, 1–2°), so only the motions the bone does not observe feel it.
+const PRIOR_TRANSLATION_MM: f64 = 5.0;
+const PRIOR_ROTATION_DEGREES: f64 = 5.0;
+
+/// The data terms of a scene and what composing them found.
+#[derive(Debug, Clone)]
+pub struct FitState {
+    /// Every measurement as one data term (the solver's).
+    pub fits: Fits,
+    /// Per measurement: the rigid misalignment estimated from its bone points.
+    pub rigid: Vec<Option<RigidFit>>,
+    /// Per measurement: the data stiffness per area and the area covered at composition.
+    pub stiffness: Vec<f64>,
+    pub covered_area: Vec<f64>,
+    /// The springs of the last linearisation at the answer (verification's data forces).
+    pub springs: Springs,
+    /// How far the data pull at composition: the largest matched residual (the length
+    /// scale of the fit, in place of a prescribed displacement's).
+    pub reach: f64,
+}
+
+/// The data terms of `p`'s measurements, `None` without any.
+pub fn compose_fits(p: &Prepared) -> Result<Option<FitState>, SceneError> {
+    if p.measurements.is_empty() {
+        return Ok(None);
+    }
+    let mut terms = Vec::new();
+    let (mut rigid, mut stiffness, mut covered) = (Vec::new(), Vec::new(), Vec::new());
+    let mut reach = 0.0f64;
+    for m in &p.measurements {
+        let MeasuredData::Surface { points, faces, face_elements, bone, .. } = &m.data;
+        let fit = match bone {
+            Some((_, b)) if m.rigid => Some(estimate_rigid(p, m, b)?),
+            _ => None,
+        };
+        let corrected: Vec<Point3<f64>> = match &fit {
+            Some(f) => points.iter().map(|q| f.rigid.apply(q)).collect(),
+            None => points.clone(),
+        };
+        let mu = face_elements.iter().map(|&e| shear_modulus(p, e)).fold(0.0f64, f64::max);
+        let params = SurfaceParams { sigma: m.sigma, stiffness: 1.0, max_distance: m.max_distance };
+        let mut term = SurfaceFit::new(corrected, faces, &p.mesh.nodes, params);
+        let mut springs = Springs::new();
+        term.linearise(&p.mesh.nodes, &mut springs);
+        term.classify(&p.mesh.nodes);
+        let area = term.covered_area();
+        let kappa = bs_fit::surface_stiffness(mu, m.sigma, area, term.mean_edge());
+        term.set_stiffness(kappa);
+        reach = term
+            .fits()
+            .iter()
+            .filter(|f| f.status == bs_fit::PointStatus::Inlier)
+            .map(|f| f.residual.abs())
+            .fold(reach, f64::max);
+        terms.push(Term::Surface(term));
+        rigid.push(fit);
+        stiffness.push(kappa);
+        covered.push(area);
+    }
+    Ok(Some(FitState {
+        fits: Fits::new(terms),
+        rigid,
+        stiffness,
+        covered_area: covered,
+        springs: Springs::new(),
+        reach,
+    }))
+}
+
+/// The shear modulus of element `e`'s material (Pa).
+fn shear_modulus(p: &Prepared, e: usize) -> f64 {
+    p.scene.regions[p.region_of_element[e]].material.moduli().map_or(0.0, |m| m.mu)
+}
+
+/// The scan's misalignment from its bone points against the skull.
+fn estimate_rigid(
+    p: &Prepared,
+    m: &Measured,
+    bone: &[Point3<f64>],
+) -> Result<RigidFit, SceneError> {
+    let skull: &TriSurface = p.skull.as_ref().expect("checked at preparation: bone needs a skull");
+    let patch = Patch::new(
+        skull.vertices.clone(),
+        skull.triangles.iter().map(|t| t.map(|k| k as u32)).collect(),
+    );
+    let mm = 1e-3 / p.scene.units.metres();
+    let params = RigidParams {
+        sigma: m.sigma,
+        prior_translation: PRIOR_TRANSLATION_MM * mm,
+        prior_rotation: PRIOR_ROTATION_DEGREES.to_radians(),
+        max_distance: m.max_distance,
+        iterations: 50,
+    };
+    bs_fit::fit_rigid(bone, &patch, &params).map_err(|e| match e {
+        bs_fit::RigidError::TooFewMatched { matched, given } => SceneError::Read {
+            scene: p.path.clone(),
+            key: format!("{} skull_points", m.key()),
+            message: format!(
+                "only {matched} of {given} bone points lie within max_distance = {} of the \
+                 skull; at least 6 are needed to estimate a rigid misalignment (check the \
+                 points' frame and units)",
+                m.max_distance
+            ),
+        },
+    })
+}
