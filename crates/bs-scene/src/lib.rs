@@ -49,6 +49,7 @@ pub mod compose;
 mod error;
 pub mod findings;
 pub mod gap;
+mod imposed;
 mod loads;
 pub mod measure;
 pub mod memory;

@@ -180,6 +180,7 @@ impl Prepared {
             measurements,
         };
         prepared.require_supported()?;
+        crate::imposed::check(&prepared)?;
         Ok(prepared)
     }
 

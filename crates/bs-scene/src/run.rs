@@ -86,7 +86,8 @@ impl Run {
     pub fn solve(&mut self, observer: &mut dyn FnMut(&Progress)) -> Result<Solved, SceneError> {
         let started = Instant::now();
         let (solution, max_penetration_before) =
-            solve_composed(&mut self.composed, &self.settings, observer)?;
+            solve_composed(&mut self.composed, &self.settings, observer)
+                .map_err(|e| crate::imposed::explain(&self.prepared, e))?;
         let verification = verify(
             &self.prepared,
             &self.composed,
