@@ -125,10 +125,15 @@ fn patch_faces(
     for &n in nodes {
         member[n] = true;
     }
-    if let Some(&n) = nodes.iter().find(|&&n| prescribed[n].iter().any(Option::is_some)) {
+    // A symmetry plane may hold a component at zero; a node moved by a boundary, or held in
+    // every direction, is the boundary's, not the data's.
+    let taken = |c: &[Option<f64>; 3]| {
+        c.iter().all(Option::is_some) || c.iter().flatten().any(|v| *v != 0.0)
+    };
+    if let Some(&n) = nodes.iter().find(|&&n| taken(&prescribed[n])) {
         return Err(err(format!(
-            "node {} is also held by a [[boundary]]: a measurement pulls free nodes (the fit \
-             decides where they go); take the measured nodes out of the boundary's set",
+            "node {} is also moved or held by a [[boundary]]: a measurement pulls free nodes \
+             (the fit decides where they go); take the measured nodes out of the boundary's set",
             mesh.node_ids[n]
         )));
     }

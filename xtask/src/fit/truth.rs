@@ -1,4 +1,4 @@
-//! `cargo xtask fit`: the measurement-fit fixture and study.
+//! The truth a fit is measured against, and the scans a sensor would make of it.
 //!
 //! The truth is the mni152-regions brain (parenchyma, ventricles, tumour; its own materials)
 //! whose craniotomy sags in a bell (7 mm deep at the window's top, 15 mm wide), solved once.
@@ -7,15 +7,9 @@
 //! only the scan; its error is measured at the deep nodes (farther than 15 mm from every
 //! craniotomy node), against imposing the exact displacements of the covered nodes (the
 //! coverage oracle) and against no correction at all.
-//!
-//! * `fit fixture` writes `fixtures/fit/` (the truth, one scan of the first target case, its
-//!   scene);
-//! * `fit study [--quick]` runs the whole grid and writes the table and the chart of
-//!   `docs/fit.md`.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 use bs_fit::Rigid;
 use bs_fit::synthetic::{self, Coverage, ScanParams};
@@ -49,7 +43,7 @@ pub struct Truth {
     pub deep: Vec<usize>,
 }
 
-fn regions() -> PathBuf {
+pub fn regions() -> PathBuf {
     root().join("fixtures/mni152-regions")
 }
 
@@ -61,7 +55,7 @@ fn bell(x: &Point3<f64>, centre: &Point3<f64>) -> Vector3<f64> {
 
 /// The regions scene's text (its materials, FIXED, contact, solver) with its craniotomy
 /// boundary replaced by `craniotomy` (TOML lines), its mesh and skull found in `mesh_dir`.
-fn scene_text(craniotomy: &str, mesh_dir: &str) -> String {
+pub fn scene_text(craniotomy: &str, mesh_dir: &str) -> String {
     let text = std::fs::read_to_string(regions().join("scene.toml")).expect("the regions scene");
     let cut = text.find("# The MNI152 demo's craniotomy").expect("the craniotomy boundary");
     let contact = text.find("[contact]").expect("the contact table");
@@ -92,7 +86,7 @@ pub fn truth(dir: &Path, mesh_dir: &str) -> Result<Truth, String> {
     );
     let scene = dir.join("scene-truth.toml");
     crate::util::write(&scene, &scene_text(&boundary, mesh_dir))?;
-    let u = solve(&scene)?.0;
+    let u = solve(&scene)?.u;
     let mut csv = String::from("node_id,ux,uy,uz\n");
     for (id, d) in mesh.node_ids.iter().zip(&u) {
         writeln!(csv, "{id},{:?},{:?},{:?}", d.x, d.y, d.z).unwrap();
@@ -117,12 +111,28 @@ fn patch(mesh: &Mesh, member: &[bool]) -> Vec<[usize; 3]> {
         .collect()
 }
 
-/// A scene's verified displacements and the solve's wall time, iterations.
-pub fn solve(scene: &Path) -> Result<(Vec<Vector3<f64>>, f64, usize), String> {
+/// A verified solve of a scene.
+pub struct Solve {
+    pub u: Vec<Vector3<f64>>,
+    pub seconds: f64,
+    pub iterations: usize,
+    pub min_jacobian: f64,
+    /// The first measurement's report, when the scene has one.
+    pub measurement: Option<bs_scene::measure::MeasurementReport>,
+}
+
+/// A scene's verified displacements and what the solve took.
+pub fn solve(scene: &Path) -> Result<Solve, String> {
     let p = Prepared::load(scene).map_err(|e| e.to_string())?;
     let mut run = Run::prepare(p).map_err(|e| e.to_string())?;
     let s = run.solve(&mut |_| {}).map_err(|e| e.to_string())?;
-    Ok((s.solution.displacements, s.solve_seconds, s.solution.report.steps))
+    Ok(Solve {
+        seconds: s.solve_seconds,
+        iterations: s.solution.report.steps,
+        min_jacobian: s.verification.min_jacobian,
+        measurement: s.measurements.first().cloned(),
+        u: s.solution.displacements,
+    })
 }
 
 /// How a case degrades the scan.
@@ -138,7 +148,7 @@ pub struct Case {
 }
 
 impl Case {
-    fn coverage(&self) -> Coverage {
+    pub fn coverage(&self) -> Coverage {
         let (a, b) =
             (Vector3::new(1.0, 0.3, 0.0).normalize(), Vector3::new(-0.3, 1.0, 0.0).normalize());
         match self.coverage {
@@ -148,7 +158,7 @@ impl Case {
         }
     }
 
-    fn misalignment(&self, centre: &Point3<f64>) -> Rigid {
+    pub fn misalignment(&self, centre: &Point3<f64>) -> Rigid {
         if self.misalignment == 0.0 {
             return Rigid::default();
         }
@@ -160,12 +170,23 @@ impl Case {
     }
 }
 
+/// The truth's deformed node positions.
+pub fn deformed(t: &Truth) -> Vec<Point3<f64>> {
+    t.mesh.nodes.iter().zip(&t.u).map(|(x, d)| x + d).collect()
+}
+
+/// The centroid of the deformed window (where coverage cuts go through).
+pub fn window_centre(t: &Truth) -> Point3<f64> {
+    let d = deformed(t);
+    synthetic::centroid(&t.faces.iter().map(|f| d[f[0]]).collect::<Vec<_>>())
+}
+
 /// Writes the scan of `case` (and bone points when misaligned) into `dir`; returns the
 /// scene text of its fit (the regions mesh found in `mesh_dir`).
 pub fn write_scan(t: &Truth, case: &Case, dir: &Path, mesh_dir: &str) -> Result<String, String> {
-    let deformed: Vec<Point3<f64>> = t.mesh.nodes.iter().zip(&t.u).map(|(x, d)| x + d).collect();
+    let deformed = deformed(t);
     let misalign = case.misalignment(&t.centre);
-    let window = synthetic::centroid(&t.faces.iter().map(|f| deformed[f[0]]).collect::<Vec<_>>());
+    let window = window_centre(t);
     let params = ScanParams {
         density: DENSITY,
         sigma: case.sigma,
@@ -216,7 +237,7 @@ fn bone_points(t: &Truth, seed: u64) -> Vec<Point3<f64>> {
     synthetic::sample_surface(&s.vertices, &ring, BONE_DENSITY, &mut rng)
 }
 
-fn write_points(path: &Path, points: &[Point3<f64>]) -> Result<(), String> {
+pub fn write_points(path: &Path, points: &[Point3<f64>]) -> Result<(), String> {
     let mut s = String::from("x,y,z\n");
     for p in points {
         writeln!(s, "{:?},{:?},{:?}", p.x, p.y, p.z).unwrap();
@@ -231,49 +252,4 @@ pub fn deep_error(t: &Truth, u: &[Vector3<f64>]) -> (f64, f64, f64) {
     let mean = e.iter().sum::<f64>() / e.len() as f64;
     let p95 = e[((e.len() as f64 * 0.95) as usize).min(e.len() - 1)];
     (mean, p95, *e.last().unwrap())
-}
-
-/// `cargo xtask fit fixture`.
-pub fn fixture() -> Result<(), String> {
-    let dir = root().join("fixtures/fit");
-    let started = Instant::now();
-    let t = truth(&dir, "../mni152-regions")?;
-    let case = Case { sigma: 1.0, coverage: 0.5, outliers: 0.05, misalignment: 2.0, seed: 47 };
-    let text = write_scan(&t, &case, &dir, "../mni152-regions")?;
-    crate::util::write(&dir.join("scene.toml"), &text)?;
-    let (u, seconds, iterations) = solve(&dir.join("scene.toml"))?;
-    let (mean, p95, max) = deep_error(&t, &u);
-    let none = deep_error(&t, &vec![Vector3::zeros(); u.len()]);
-    println!(
-        "fixtures/fit: {} deep nodes; fit {iterations} iterations, {seconds:.2} s: deep error \
-         mean {mean:.3} mm, p95 {p95:.3}, max {max:.3} (no correction: mean {:.3}); {:.1} s in all",
-        t.deep.len(),
-        none.0,
-        started.elapsed().as_secs_f64()
-    );
-    Ok(())
-}
-
-/// `cargo xtask fit ...`.
-pub fn main(args: &[String]) -> Result<(), String> {
-    match args.first().map(String::as_str) {
-        Some("fixture") => fixture(),
-        Some("try") => {
-            let v: Vec<f64> = args[1..].iter().map(|a| a.parse().unwrap_or(0.0)).collect();
-            let case = Case {
-                sigma: v.first().copied().unwrap_or(1.0),
-                coverage: v.get(1).copied().unwrap_or(1.0),
-                outliers: v.get(2).copied().unwrap_or(0.0),
-                misalignment: v.get(3).copied().unwrap_or(0.0),
-                seed: 47,
-            };
-            let dir = root().join("target/fit-try");
-            let t = truth(&dir, &regions().display().to_string())?;
-            let text = write_scan(&t, &case, &dir, &regions().display().to_string())?;
-            crate::util::write(&dir.join("scene.toml"), &text)?;
-            println!("wrote {}", dir.join("scene.toml").display());
-            Ok(())
-        }
-        _ => Err("fit what? `cargo xtask fit fixture` or `cargo xtask fit study [--quick]`".into()),
-    }
 }

@@ -1,0 +1,122 @@
+//! `cargo xtask fit`: the measurement-fit fixture and study (the truth and its scans in
+//! [`truth`], the grid of fits in [`study`], its figure in [`chart`]).
+//!
+//! * `fit fixture` writes `fixtures/fit/` (the truth, one scan of the first target case as
+//!   .csv and .ply, its scene);
+//! * `fit study [--quick]` runs the grid and writes the table and the chart of `docs/fit.md`.
+
+mod chart;
+mod study;
+mod truth;
+
+use std::fmt::Write as _;
+use std::time::Instant;
+
+use bs_mesh::Vector3;
+
+use crate::util::root;
+use truth::{Case, deep_error, regions, solve, truth, write_scan};
+
+/// `cargo xtask fit fixture`.
+pub fn fixture() -> Result<(), String> {
+    let dir = root().join("fixtures/fit");
+    let started = Instant::now();
+    let t = truth(&dir, "../mni152-regions")?;
+    let case = Case { sigma: 1.0, coverage: 0.5, outliers: 0.05, misalignment: 2.0, seed: 47 };
+    let text = write_scan(&t, &case, &dir, "../mni152-regions")?;
+    crate::util::write(&dir.join("scene.toml"), &text)?;
+    // The same scan as a PLY file (for the test that both give the same answer).
+    let points =
+        bs_mesh::io::points::read_points(&dir.join("scan.csv")).map_err(|e| e.to_string())?;
+    let mut ply = Vec::new();
+    bs_mesh::io::ply::write(&mut ply, &points).map_err(|e| e.to_string())?;
+    std::fs::write(dir.join("scan.ply"), ply).map_err(|e| e.to_string())?;
+    let s = solve(&dir.join("scene.toml"))?;
+    let (mean, p95, max) = deep_error(&t, &s.u);
+    let none = deep_error(&t, &vec![Vector3::zeros(); s.u.len()]);
+    println!(
+        "fixtures/fit: {} deep nodes; fit {} iterations, {:.2} s: deep error mean {mean:.3} mm, \
+         p95 {p95:.3}, max {max:.3} (no correction: mean {:.3}); {:.1} s in all",
+        t.deep.len(),
+        s.iterations,
+        s.seconds,
+        none.0,
+        started.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// `cargo xtask fit study [--quick]`.
+pub fn run_study(quick: bool) -> Result<(), String> {
+    let started = Instant::now();
+    let dir = root().join("target/fit-study");
+    let mesh_dir = regions().display().to_string();
+    let t = truth(&dir, &mesh_dir)?;
+    let none = deep_error(&t, &vec![Vector3::zeros(); t.u.len()]);
+    let mut rows = Vec::new();
+    for (group, case) in study::cases(quick) {
+        let row = study::fit(&t, group, case, &dir);
+        eprintln!(
+            "{group}: sigma {} coverage {} outliers {} misalignment {}: {}",
+            case.sigma,
+            case.coverage,
+            case.outliers,
+            case.misalignment,
+            study::cell(&row.fit)
+        );
+        rows.push(row);
+    }
+    let oracles: Vec<_> =
+        [1.0, 0.5, 0.25].into_iter().map(|c| (c, study::oracle(&t, c, &dir))).collect();
+    let sigmas: &[f64] = if quick { &[1.0] } else { &[0.0, 0.5, 1.0, 2.0] };
+    let imposed: Vec<_> = sigmas.iter().map(|&s| (s, study::imposed(&t, s, &dir))).collect();
+    let mut doc = study::table(&rows, &oracles, none);
+    writeln!(doc, "\nThe same scans imposed node by node (`[[boundary]] surface`, the whole window, noise on the surface's vertices):\n").unwrap();
+    writeln!(doc, "| σ (mm) | imposed: deep mean / p95 (mm) |\n|---|---|").unwrap();
+    for (s, e) in &imposed {
+        writeln!(doc, "| {s} | {} |", study::cell(e)).unwrap();
+    }
+    writeln!(
+        doc,
+        "\n{} deep nodes of {}; made by `cargo xtask fit study` in {:.0} s (2 threads).",
+        t.deep.len(),
+        t.mesh.nodes.len(),
+        started.elapsed().as_secs_f64()
+    )
+    .unwrap();
+    if quick {
+        print!("{doc}");
+        return Ok(());
+    }
+    crate::util::replace_block(&root().join("docs/fit.md"), "fit-study", &doc)?;
+    let chart = chart::NoiseChart { rows: &rows, oracles: &oracles, none: none.0 };
+    crate::plot::save(&chart, &root().join("docs/charts/fit-noise"), (900, 560))?;
+    println!("wrote docs/fit.md and docs/charts/fit-noise.png/.svg");
+    Ok(())
+}
+
+/// `cargo xtask fit ...`.
+pub fn main(args: &[String]) -> Result<(), String> {
+    match args.first().map(String::as_str) {
+        Some("fixture") => fixture(),
+        Some("study") => run_study(args.iter().any(|a| a == "--quick")),
+        Some("try") => {
+            // One case into target/fit-try (for exploring): SIGMA COVERAGE OUTLIERS MISALIGNMENT.
+            let v: Vec<f64> = args[1..].iter().map(|a| a.parse().unwrap_or(0.0)).collect();
+            let case = Case {
+                sigma: v.first().copied().unwrap_or(1.0),
+                coverage: v.get(1).copied().unwrap_or(1.0),
+                outliers: v.get(2).copied().unwrap_or(0.0),
+                misalignment: v.get(3).copied().unwrap_or(0.0),
+                seed: 47,
+            };
+            let dir = root().join("target/fit-try");
+            let t = truth(&dir, &regions().display().to_string())?;
+            let text = write_scan(&t, &case, &dir, &regions().display().to_string())?;
+            crate::util::write(&dir.join("scene.toml"), &text)?;
+            println!("wrote {}", dir.join("scene.toml").display());
+            Ok(())
+        }
+        _ => Err("fit what? `cargo xtask fit fixture`, `fit study [--quick]` or `fit try SIGMA COVERAGE OUTLIERS MISALIGNMENT`".into()),
+    }
+}

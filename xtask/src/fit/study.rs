@@ -1,0 +1,194 @@
+//! `cargo xtask fit study`: fits of degraded scans of the truth, against the coverage
+//! oracle, against imposing the scan node by node, and against no correction; one row per
+//! case, the table of docs/fit.md and its chart.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use bs_mesh::{TriSurface, Vector3};
+
+use super::truth::{self, Case, Solve, Truth};
+
+/// One row of the study.
+#[derive(Debug, Clone)]
+pub struct Row {
+    pub group: &'static str,
+    pub case: Case,
+    /// The fit's deep error (mean, p95, max), or why it failed.
+    pub fit: Result<(f64, f64, f64), String>,
+    pub solve: Option<(f64, usize, f64)>,
+    /// Inliers of the points read; how far the corrected scan is from the truth at the
+    /// window's centre (the misalignment the rigid correction left, mm).
+    pub inliers: Option<(usize, usize)>,
+    pub rigid: Option<f64>,
+}
+
+/// The coverage oracle: the exact displacement vectors of the covered craniotomy nodes
+/// imposed, the rest free. Deep error (mean, p95, max).
+pub fn oracle(t: &Truth, coverage: f64, dir: &Path) -> Result<(f64, f64, f64), String> {
+    let case = Case { sigma: 0.0, coverage, outliers: 0.0, misalignment: 0.0, seed: 0 };
+    let cut = case.coverage();
+    let centre = truth::window_centre(t);
+    let deformed = truth::deformed(t);
+    let mut csv = String::from("node_id,ux,uy,uz\n");
+    for &a in &t.nodes {
+        if cut.sees(&(deformed[a] - centre)) {
+            let d = t.u[a];
+            writeln!(csv, "{},{:?},{:?},{:?}", t.mesh.node_ids[a], d.x, d.y, d.z).unwrap();
+        }
+    }
+    let name = format!("oracle-{}", (coverage * 100.0) as u32);
+    crate::util::write(&dir.join(format!("{name}.csv")), &csv)?;
+    let boundary =
+        format!("[[boundary]]\nnset = \"CRANIOTOMY\"\ndisplacement_file = \"{name}.csv\"\n");
+    let scene = dir.join(format!("{name}.toml"));
+    let mesh_dir = truth::regions().display().to_string();
+    crate::util::write(&scene, &truth::scene_text(&boundary, &mesh_dir))?;
+    Ok(truth::deep_error(t, &truth::solve(&scene)?.u))
+}
+
+/// Today's way: the scanned surface imposed node by node (`[[boundary]] surface`), the
+/// truth's deformed patch with noise `sigma` on its vertices as an STL.
+pub fn imposed(t: &Truth, sigma: f64, dir: &Path) -> Result<(f64, f64, f64), String> {
+    let deformed = truth::deformed(t);
+    let mut rng = bs_mesh::rng::SplitMix64::new(5);
+    let mut index = std::collections::HashMap::new();
+    let mut vertices = Vec::new();
+    let triangles = t
+        .faces
+        .iter()
+        .map(|f| {
+            f.map(|a| {
+                *index.entry(a).or_insert_with(|| {
+                    let noise = Vector3::new(rng.normal(), rng.normal(), rng.normal()) * sigma;
+                    vertices.push(deformed[a] + noise);
+                    vertices.len() - 1
+                })
+            })
+        })
+        .collect();
+    let stl = dir.join(format!("imposed-{}.stl", (sigma * 10.0) as u32));
+    bs_mesh::io::write_surface(&stl, &TriSurface { vertices, triangles })
+        .map_err(|e| e.to_string())?;
+    let boundary = format!(
+        "[[boundary]]\nnset = \"CRANIOTOMY\"\nsurface = {:?}\n",
+        stl.file_name().unwrap_or_default()
+    );
+    let scene = dir.join(format!("imposed-{}.toml", (sigma * 10.0) as u32));
+    crate::util::write(
+        &scene,
+        &truth::scene_text(&boundary, &truth::regions().display().to_string()),
+    )?;
+    Ok(truth::deep_error(t, &truth::solve(&scene)?.u))
+}
+
+/// Fits `case` in `dir`.
+pub fn fit(t: &Truth, group: &'static str, case: Case, dir: &Path) -> Row {
+    let run = || -> Result<Solve, String> {
+        let text = truth::write_scan(t, &case, dir, &truth::regions().display().to_string())?;
+        let scene = dir.join("scene.toml");
+        crate::util::write(&scene, &text)?;
+        truth::solve(&scene)
+    };
+    match run() {
+        Ok(s) => Row {
+            group,
+            case,
+            fit: Ok(truth::deep_error(t, &s.u)),
+            solve: Some((s.seconds, s.iterations, s.min_jacobian)),
+            inliers: s.measurement.as_ref().map(|m| (m.inliers, m.points)),
+            rigid: s.measurement.as_ref().and_then(|m| m.rigid.as_ref()).map(|r| {
+                let axis = Vector3::from(r.axis);
+                let rotation = nalgebra::Rotation3::new(axis * r.angle_degrees.to_radians());
+                let fix = bs_fit::Rigid { rotation, translation: Vector3::from(r.translation) };
+                let c = t.centre;
+                (fix.apply(&case.misalignment(&c).apply(&c)) - c).norm()
+            }),
+        },
+        Err(e) => Row { group, case, fit: Err(e), solve: None, inliers: None, rigid: None },
+    }
+}
+
+/// The cases: noise × coverage (clean otherwise), outliers × misalignment at σ = 1 mm and
+/// half coverage, and the issue's target cases.
+pub fn cases(quick: bool) -> Vec<(&'static str, Case)> {
+    let c = |sigma, coverage, outliers, misalignment| Case {
+        sigma,
+        coverage,
+        outliers,
+        misalignment,
+        seed: 47,
+    };
+    let mut v = Vec::new();
+    let sigmas: &[f64] = if quick { &[0.0, 1.0] } else { &[0.0, 0.5, 1.0, 2.0] };
+    for &coverage in &[1.0, 0.5, 0.25] {
+        for &s in sigmas {
+            v.push(("noise × coverage", c(s, coverage, 0.0, 0.0)));
+        }
+    }
+    if !quick {
+        for &o in &[0.05, 0.10] {
+            v.push(("outliers", c(1.0, 0.5, o, 0.0)));
+        }
+        v.push(("misalignment", c(1.0, 0.5, 0.0, 2.0)));
+    }
+    v.push(("target", c(1.0, 0.5, 0.05, 2.0)));
+    v.push(("target", c(2.0, 0.25, 0.10, 0.0)));
+    v
+}
+
+/// A deep-error cell.
+pub fn cell(e: &Result<(f64, f64, f64), String>) -> String {
+    match e {
+        Ok((mean, p95, _)) => format!("{mean:.2} / {p95:.2}"),
+        Err(m) if m.contains("invert") => "fails: an element inverts".into(),
+        Err(m) => {
+            let short: String = m.chars().take(80).collect();
+            format!("fails: {}…", crate::util::escape_cell(&short))
+        }
+    }
+}
+
+/// The table of the rows (Markdown).
+pub fn table(
+    rows: &[Row],
+    oracles: &[(f64, Result<(f64, f64, f64), String>)],
+    none: (f64, f64, f64),
+) -> String {
+    let mut s = String::from(
+        "| group | σ (mm) | coverage | outliers | misalignment | fit: deep mean / p95 (mm) | \
+         coverage oracle | solve (s) | iterations | min J | inliers | misalignment left (mm) |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        let c = &r.case;
+        let oracle = oracles
+            .iter()
+            .find(|(cov, _)| *cov == c.coverage)
+            .map_or(String::new(), |(_, e)| cell(e));
+        let (secs, its, j) =
+            r.solve.map_or((String::new(), String::new(), String::new()), |(s, i, j)| {
+                (format!("{s:.2}"), i.to_string(), format!("{j:.2}"))
+            });
+        writeln!(
+            s,
+            "| {} | {} | {} % | {} % | {} mm | {} | {oracle} | {secs} | {its} | {j} | {} | {} |",
+            r.group,
+            c.sigma,
+            c.coverage * 100.0,
+            c.outliers * 100.0,
+            c.misalignment,
+            cell(&r.fit),
+            r.inliers.map_or(String::new(), |(i, n)| format!("{i} of {n}")),
+            r.rigid.map_or(String::new(), |t| format!("{t:.2}")),
+        )
+        .unwrap();
+    }
+    writeln!(
+        s,
+        "\nNo correction at all (the pre-operative brain): deep mean {:.2} mm, p95 {:.2} mm.",
+        none.0, none.1
+    )
+    .unwrap();
+    s
+}
