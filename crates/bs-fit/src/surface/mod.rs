@@ -13,7 +13,8 @@
 //!
 //! `E_d = κ ∫_patch c · ½ d(x, scan)² dA ≈ Σ_q κ (A_f / 3) c_q · ½ (n_q · (x_q − p_q))²`,
 //!
-//! `A_f` the face's area, `c_q` the coverage of quadrature point `q`, `(n_q, p_q)` its plane
+//! `A_f` the face's area (in the reference configuration: the integral is over the
+//! reference patch, so the weights do not change as the patch deforms), `c_q` the coverage of quadrature point `q`, `(n_q, p_q)` its plane
 //! and `κ` the data stiffness per area ([`surface_stiffness`]): the weight does not depend on
 //! how densely the scanner sampled, each plane averages the noise of every point within the
 //! radius `R ≥ 3σ`, and pulling whole faces (not only nodes) onto the scan leaves the
@@ -170,7 +171,7 @@ impl SurfaceFit {
             scale: params.sigma,
             vertices,
             normals: Vec::new(),
-            areas: Vec::new(),
+            areas: triangles_areas(positions, faces),
             anchor: Vec::new(),
             springs: Springs::new(),
         };
@@ -244,7 +245,7 @@ impl SurfaceFit {
         &self.nodes
     }
 
-    /// The patch area the scan covered at the last linearisation (`Σ A_f/3 · c_q`).
+    /// The reference patch area the scan covered at the last linearisation (`Σ A_f/3 · c_q`).
     pub fn covered_area(&self) -> f64 {
         self.planes
             .iter()
@@ -262,14 +263,12 @@ impl SurfaceFit {
         let n = self.vertices.len();
         self.normals.clear();
         self.normals.resize(n, Vector3::zeros());
-        self.areas.clear();
         for t in self.patch.triangles() {
             let [a, b, c] = t.map(|k| self.vertices[k as usize]);
             let m = (b - a).cross(&(c - a));
             for &k in t {
                 self.normals[k as usize] += m;
             }
-            self.areas.push(0.5 * m.norm());
         }
         for v in &mut self.normals {
             let l = v.norm();
@@ -317,6 +316,18 @@ impl SurfaceFit {
             };
         }
     }
+}
+
+/// The area of each face at `positions` (the reference): the data energy is an integral
+/// over the reference patch, so the springs' weights do not change as it deforms.
+fn triangles_areas(positions: &[Point3<f64>], faces: &[[usize; 3]]) -> Vec<f64> {
+    faces
+        .iter()
+        .map(|f| {
+            let [a, b, c] = f.map(|k| positions[k]);
+            0.5 * (b - a).cross(&(c - a)).norm()
+        })
+        .collect()
 }
 
 /// Whether patch point `q` lies on a border edge.

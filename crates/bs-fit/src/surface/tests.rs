@@ -123,3 +123,23 @@ fn the_stiffness_rule_scales_with_area_and_noise() {
     // Capped at 100 μ/h.
     assert_eq!(surface_stiffness(1000.0, 0.1, 900.0, 5.0), 20_000.0);
 }
+
+/// A patch scanned beyond its edges by an exact grid: every quadrature point is fully
+/// covered (its spring carries κ times a third of its face's area), whatever its place.
+#[test]
+fn a_patch_scanned_beyond_its_edges_is_covered_everywhere() {
+    let (x, faces) = square(4);
+    let mut points = Vec::new();
+    for j in 0..=80 {
+        for i in 0..=80 {
+            points.push(Point3::new(-2.0 + 0.1 * i as f64, -2.0 + 0.1 * j as f64, 0.3));
+        }
+    }
+    let mut fit = SurfaceFit::new(points, &faces, &x, params(0.01));
+    let mut springs = Springs::new();
+    fit.linearise(&x, &mut springs);
+    assert_eq!(springs.len(), 3 * faces.len());
+    for s in springs.terms() {
+        assert!((s.stiffness() - 2.0 / 6.0).abs() < 1e-12, "{:?}", s);
+    }
+}
