@@ -99,7 +99,7 @@ impl Setup {
         }
         data.linearise(&s.positions, &mut s.springs);
         s.bound.iter_mut().for_each(|b| *b = 0.0);
-        s.springs.add_stiffness_bound_into(&s.positions, &mut s.bound);
+        s.springs.add_stiffness_bound_into(&mut s.bound);
         let f2 = step_fraction * step_fraction;
         for (a, &k) in s.bound.iter().enumerate() {
             let m = self.element_masses[a] + k / (4.0 * f2);

@@ -97,13 +97,16 @@ impl Iterate {
     }
 
     /// The data term linearised again at the iterate: its forces in `f` move from the old
-    /// springs to the new ones (no element work: the springs are linear in `u`).
-    pub(crate) fn relinearise(&mut self, pb: &Problem<'_>, data: &mut dyn DataTerm) {
+    /// springs to the new ones (no element work: the springs are linear in `u`). Returns
+    /// whether the springs changed (the problem the iteration solves did).
+    pub(crate) fn relinearise(&mut self, pb: &Problem<'_>, data: &mut dyn DataTerm) -> bool {
         let reference = pb.model.reference();
+        let old = self.data.clone();
         self.data.add_forces_into(reference, &self.u, -1.0, &mut self.f);
         self.set_positions(pb);
         data.linearise(&self.positions, &mut self.data);
         self.data.add_forces_into(reference, &self.u, 1.0, &mut self.f);
+        old != self.data
     }
 }
 

@@ -83,9 +83,12 @@ pub(crate) fn solve(
         work.iterations += 1;
         // 0. The measurements linearised at the iterate (correspondences, robust weights):
         // the data force in `f` and the residual follow.
+        // A data term linearised anew is a new problem: its residual starts a new descent, as
+        // a load step's does (else the level would read the jump as a stall).
+        let mut relinearised = false;
         if data.is_active() {
             let t = Instant::now();
-            it.relinearise(pb, data);
+            relinearised = it.relinearise(pb, data);
             it.phi = pb.merit(&it.u, &it.f, contact)?;
             work.time.contact += t.elapsed();
         }
@@ -145,7 +148,7 @@ pub(crate) fn solve(
         let verdict = term.check(&Iteration {
             err: it.err,
             loading: schedule.loading(),
-            loaded: load,
+            loaded: load || relinearised,
             changes: change.changes,
             penetration: report.max_penetration,
             phi: it.phi,

@@ -445,7 +445,7 @@ impl SurfaceFit {
             let Some(p) = plane else { continue };
             let (t, w, _, _) = self.quadrature(q);
             let (direction, target) = (p.normal, p.normal.dot(&p.point.coords));
-            springs.push(Spring::Along {
+            springs.push(Spring {
                 nodes: [
                     self.nodes[t[0] as usize],
                     self.nodes[t[1] as usize],

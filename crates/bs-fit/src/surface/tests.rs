@@ -45,11 +45,8 @@ fn covered_nodes_are_pulled_onto_the_scanned_plane_and_the_rest_stay_free() {
     // The radius: four times the point spacing (0.18 for 1500 points on 5 × 10).
     let r = fit.radius();
     assert!((0.7..1.0).contains(&r), "{r}");
-    let point_of = |s: &Spring| match *s {
-        Spring::Along { nodes, weights, .. } => {
-            Point3::from((0..3).map(|k| x[nodes[k]].coords * weights[k]).sum::<Vector3<f64>>())
-        }
-        Spring::Plane { point, .. } => point,
+    let point_of = |s: &Spring| {
+        Point3::from((0..3).map(|k| x[s.nodes[k]].coords * s.weights[k]).sum::<Vector3<f64>>())
     };
     let zero = vec![Vector3::zeros(); x.len()];
     for s in springs.terms() {
@@ -62,7 +59,7 @@ fn covered_nodes_are_pulled_onto_the_scanned_plane_and_the_rest_stay_free() {
             assert!((res + 0.5).abs() < 0.05, "{q}: {res}");
             // Full coverage but for the noise of the points' centroid across the line (about
             // 0.1 R with 40 points in the cylinder; the taper starts at 0.2 R): within 10 %.
-            let k = s.stiffness() / (2.0 / 6.0);
+            let k = s.stiffness / (2.0 / 6.0);
             assert!(k <= 1.0 + 1e-12 && k > 0.9, "{q}: {k}");
         }
     }
@@ -140,6 +137,6 @@ fn a_patch_scanned_beyond_its_edges_is_covered_everywhere() {
     fit.linearise(&x, &mut springs);
     assert_eq!(springs.len(), 3 * faces.len());
     for s in springs.terms() {
-        assert!((s.stiffness() - 2.0 / 6.0).abs() < 1e-12, "{:?}", s);
+        assert!((s.stiffness - 2.0 / 6.0).abs() < 1e-12, "{:?}", s);
     }
 }
