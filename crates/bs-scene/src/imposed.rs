@@ -6,11 +6,23 @@
 //! an error naming the element, the boundary whose data do it, and the fix: fit the data
 //! (`[[measurement]]`) instead of imposing them.
 
-use bs_mesh::{ElementKind, Point3, Vector3};
+use std::path::Path;
+
+use bs_mesh::{ElementKind, Mesh, Point3, Vector3};
 
 use crate::SceneError;
 use crate::boundary::select_nodes;
-use crate::prepare::Prepared;
+use crate::scene::Scene;
+
+/// What the checks read of a prepared scene: the scene (file and tables), the mesh and the
+/// prescribed displacement of every node.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Imposed<'a> {
+    pub path: &'a Path,
+    pub scene: &'a Scene,
+    pub mesh: &'a Mesh,
+    pub prescribed: &'a [[Option<f64>; 3]],
+}
 
 /// The signed volume of the tetrahedron `x` (six times it, positive for a positively
 /// oriented one).
@@ -20,7 +32,7 @@ fn volume6(x: [Point3<f64>; 4]) -> f64 {
 
 /// Refuses prescribed displacements that invert a fully prescribed tetrahedron (see the
 /// module documentation).
-pub(crate) fn check(p: &Prepared) -> Result<(), SceneError> {
+pub(crate) fn check(p: Imposed<'_>) -> Result<(), SceneError> {
     let mesh = &p.mesh;
     let displacement = |n: usize| -> Option<Vector3<f64>> {
         let c = p.prescribed[n];
@@ -38,7 +50,7 @@ pub(crate) fn check(p: &Prepared) -> Result<(), SceneError> {
         let after = volume6(std::array::from_fn(|k| mesh.nodes[nodes[k]] + u[k]));
         if before > 0.0 && after / before <= 0.0 {
             return Err(SceneError::Element {
-                scene: p.path.clone(),
+                scene: p.path.to_path_buf(),
                 element_id: mesh.element_ids[e],
                 message: format!(
                     "the prescribed displacements of its four nodes invert it by themselves \
@@ -58,7 +70,7 @@ pub(crate) fn check(p: &Prepared) -> Result<(), SceneError> {
 /// of an intra-operative boundary (a surface, landmarks or a displacement file imposed node
 /// by node), the error says that the imposed data fold it and points to `[[measurement]]`,
 /// instead of the solver's advice to refine the mesh; any other error as it is.
-pub(crate) fn explain(p: &Prepared, e: bs_dr::SolveError) -> SceneError {
+pub(crate) fn explain(p: Imposed<'_>, e: bs_dr::SolveError) -> SceneError {
     use bs_dr::{LoadFailure, SolveError};
     let (element, how) = match &e {
         SolveError::ElementInverted { element, jacobian, .. } => {
@@ -77,7 +89,7 @@ pub(crate) fn explain(p: &Prepared, e: bs_dr::SolveError) -> SceneError {
     let nodes = p.mesh.elements[element].nodes();
     let Some(data) = imposing(p, nodes) else { return SceneError::Solve(e) };
     SceneError::Element {
-        scene: p.path.clone(),
+        scene: p.path.to_path_buf(),
         element_id: p.mesh.element_ids[element],
         message: format!(
             "the solver could not impose {data} without inverting this element ({how}): \
@@ -90,11 +102,11 @@ pub(crate) fn explain(p: &Prepared, e: bs_dr::SolveError) -> SceneError {
 
 /// The intra-operative boundary (surface, landmarks, displacement file) holding any of
 /// `nodes`, described for a message.
-fn imposing(p: &Prepared, nodes: &[usize]) -> Option<String> {
+fn imposing(p: Imposed<'_>, nodes: &[usize]) -> Option<String> {
     for (i, b) in p.scene.boundaries.iter().enumerate() {
         let file = b.surface.as_ref().or(b.landmarks.as_ref()).or(b.displacement_file.as_ref());
         let Some(file) = file else { continue };
-        let Ok((name, set)) = select_nodes(&p.path, &p.scene, &p.mesh, i, b) else { continue };
+        let Ok((name, set)) = select_nodes(p.path, p.scene, p.mesh, i, b) else { continue };
         if nodes.iter().any(|n| set.contains(n)) {
             return Some(format!("[[boundary]] #{} {} on {name}", i + 1, file.display()));
         }
@@ -103,12 +115,12 @@ fn imposing(p: &Prepared, nodes: &[usize]) -> Option<String> {
 }
 
 /// Which `[[boundary]]` prescribes `nodes` (its number, node set and file).
-fn source(p: &Prepared, nodes: &[usize]) -> String {
+fn source(p: Imposed<'_>, nodes: &[usize]) -> String {
     for (i, b) in p.scene.boundaries.iter().enumerate() {
         if b.displacement_file.is_some() || b.fix.is_some() {
             continue;
         }
-        let Ok((name, set)) = select_nodes(&p.path, &p.scene, &p.mesh, i, b) else { continue };
+        let Ok((name, set)) = select_nodes(p.path, p.scene, p.mesh, i, b) else { continue };
         if nodes.iter().any(|n| set.binary_search(n).is_ok() || set.contains(n)) {
             let file = b.surface.as_ref().or(b.landmarks.as_ref());
             let data = file.map_or(String::new(), |f| format!(" {}", f.display()));

@@ -180,8 +180,18 @@ impl Prepared {
             measurements,
         };
         prepared.require_supported()?;
-        crate::imposed::check(&prepared)?;
+        crate::imposed::check(prepared.imposed())?;
         Ok(prepared)
+    }
+
+    /// The view of this scene the imposed-data checks read.
+    pub(crate) fn imposed(&self) -> crate::imposed::Imposed<'_> {
+        crate::imposed::Imposed {
+            path: &self.path,
+            scene: &self.scene,
+            mesh: &self.mesh,
+            prescribed: &self.prescribed,
+        }
     }
 
     /// Refuses combinations the chosen solver cannot run, so `check` rejects everything

@@ -87,7 +87,7 @@ impl Run {
         let started = Instant::now();
         let (solution, max_penetration_before) =
             solve_composed(&mut self.composed, &self.settings, observer)
-                .map_err(|e| crate::imposed::explain(&self.prepared, e))?;
+                .map_err(|e| crate::imposed::explain(self.prepared.imposed(), e))?;
         let verification = verify(
             &self.prepared,
             &self.composed,

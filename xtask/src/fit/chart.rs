@@ -4,13 +4,13 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::study::Row;
+use super::study::{Oracle, Row};
 use crate::plot::{Figure, PALETTE, err};
 
 /// The figure's data.
 pub struct NoiseChart<'a> {
     pub rows: &'a [Row],
-    pub oracles: &'a [(f64, Result<(f64, f64, f64), String>)],
+    pub oracles: &'a [Oracle],
     pub none: f64,
 }
 

@@ -9,13 +9,19 @@ use bs_mesh::{TriSurface, Vector3};
 
 use super::truth::{self, Case, Solve, Truth};
 
+/// Deep-node error (mean, p95, max in mm), or why the run failed.
+pub type DeepError = Result<(f64, f64, f64), String>;
+
+/// A coverage oracle: the coverage fraction and its deep error.
+pub type Oracle = (f64, DeepError);
+
 /// One row of the study.
 #[derive(Debug, Clone)]
 pub struct Row {
     pub group: &'static str,
     pub case: Case,
     /// The fit's deep error (mean, p95, max), or why it failed.
-    pub fit: Result<(f64, f64, f64), String>,
+    pub fit: DeepError,
     pub solve: Option<(f64, usize, f64)>,
     /// Inliers of the points read; how far the corrected scan is from the truth at the
     /// window's centre (the misalignment the rigid correction left, mm).
@@ -138,7 +144,7 @@ pub fn cases(quick: bool) -> Vec<(&'static str, Case)> {
 }
 
 /// A deep-error cell.
-pub fn cell(e: &Result<(f64, f64, f64), String>) -> String {
+pub fn cell(e: &DeepError) -> String {
     match e {
         Ok((mean, p95, _)) => format!("{mean:.2} / {p95:.2}"),
         Err(m) if m.contains("invert") => "fails: an element inverts".into(),
@@ -150,11 +156,7 @@ pub fn cell(e: &Result<(f64, f64, f64), String>) -> String {
 }
 
 /// The table of the rows (Markdown).
-pub fn table(
-    rows: &[Row],
-    oracles: &[(f64, Result<(f64, f64, f64), String>)],
-    none: (f64, f64, f64),
-) -> String {
+pub fn table(rows: &[Row], oracles: &[Oracle], none: (f64, f64, f64)) -> String {
     let mut s = String::from(
         "| group | σ (mm) | coverage | outliers | misalignment | fit: deep mean / p95 (mm) | \
          coverage oracle | solve (s) | iterations | min J | inliers | misalignment left (mm) |\n\

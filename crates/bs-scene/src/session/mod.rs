@@ -101,7 +101,7 @@ impl Session {
         let from = warm.then_some(WarmStart { state, secant });
         let (solution, max_penetration_before) =
             solve_composed_from(&mut run.composed, &run.settings, from, observer)
-                .map_err(|e| crate::imposed::explain(&run.prepared, e))?;
+                .map_err(|e| crate::imposed::explain(run.prepared.imposed(), e))?;
         let tolerance = run.settings.tolerance;
         let verification =
             verify(&run.prepared, &run.composed, &solution.displacements, tolerance)?;
