@@ -216,6 +216,24 @@ pub fn measurement_line(i: usize, m: &bs_scene::measure::MeasurementReport, u: &
             r.bone_rms_after
         )
     });
+    if m.kind == "landmarks" {
+        return format!(
+            "[[measurement]] #{} landmarks {} through {}: {} of {} pairs inliers ({} outliers), \
+             residual RMS {:.3} {u} (max {:.3}) after {} model solves; the landmarks moved up to \
+             {:.3} {u} (mean {:.3})",
+            i + 1,
+            m.file,
+            m.nset,
+            m.inliers,
+            m.points,
+            m.outliers,
+            m.rms_residual,
+            m.max_residual,
+            m.solves,
+            m.max_pull,
+            m.mean_pull
+        );
+    }
     format!(
         "[[measurement]] #{} {} on {}: {} of {} points inliers ({} outliers, {} on the patch \
          border, {} farther than max_distance), residual RMS {:.3} {u} (max {:.3}); the data \

@@ -4,19 +4,23 @@
 use bs_dr::{DataTerm, Springs};
 use bs_mesh::Point3;
 
+use crate::landmarks::LandmarkFit;
 use crate::surface::SurfaceFit;
 
 /// One measurement's data term.
 #[derive(Debug, Clone)]
 pub enum Term {
-    /// A scanned surface.
-    Surface(SurfaceFit),
+    /// A scanned surface (boxed: it holds its planes and grids, a landmark term little).
+    Surface(Box<SurfaceFit>),
+    /// Landmark pairs.
+    Landmarks(LandmarkFit),
 }
 
 impl Term {
     fn linearise(&mut self, positions: &[Point3<f64>], springs: &mut Springs) {
         match self {
             Term::Surface(s) => s.linearise(positions, springs),
+            Term::Landmarks(l) => l.linearise(positions, springs),
         }
     }
 }
@@ -40,6 +44,7 @@ impl Fits {
         for t in &mut self.terms {
             match t {
                 Term::Surface(s) => s.classify(positions),
+                Term::Landmarks(l) => l.classify(positions),
             }
         }
     }
@@ -55,6 +60,9 @@ impl DataTerm for Fits {
     }
 
     fn is_active(&self) -> bool {
-        !self.terms.is_empty()
+        self.terms.iter().any(|t| match t {
+            Term::Surface(_) => true,
+            Term::Landmarks(l) => l.is_active(),
+        })
     }
 }

@@ -17,22 +17,26 @@
 //!
 //! * [`surface`]: a scanned surface (laser range scanner, stereo camera) fitted
 //!   point-to-surface on the exposed patch, density-independent weights per face;
+//! * [`landmarks`]: landmark pairs (tracked ultrasound, a pointer) measured point-to-point
+//!   at material points inside the brain;
 //! * [`rigid`]: the scan's rigid misalignment, estimated from points on bone;
 //! * [`robust`]: the scale estimate and the biweight;
 //! * [`synthetic`]: a sensor model (a known surface scanned with noise, partial coverage,
 //!   outliers and misalignment), for studies and tests.
 //!
-//! Architecture invariant: bs-fit knows points, triangles and bs-dr's data seam; it reads
+//! Architecture invariant: bs-fit knows points, triangles, material points (nodes and weights) and bs-dr's data seam; it reads
 //! no files and knows no scene (bs-scene builds its terms), no elements and no solver
 //! internals.
 
 pub mod density;
 pub mod fits;
+pub mod landmarks;
 pub mod rigid;
 pub mod robust;
 pub mod surface;
 pub mod synthetic;
 
 pub use fits::{Fits, Term};
+pub use landmarks::{Anchor, LandmarkFit};
 pub use rigid::{Rigid, RigidError, RigidFit, RigidParams, fit_rigid};
 pub use surface::{PointFit, PointStatus, SurfaceFit, SurfaceParams, surface_stiffness};

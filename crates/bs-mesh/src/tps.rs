@@ -42,6 +42,19 @@ pub struct ThinPlateSpline {
 impl ThinPlateSpline {
     /// Fits the spline that takes the value `values[i]` at `points[i]`.
     pub fn fit(points: &[Point3<f64>], values: &[Vector3<f64>]) -> Result<Self, TpsError> {
+        Self::fit_smoothing(points, values, 0.0)
+    }
+
+    /// The smoothing spline: `λ ≥ 0` added to the kernel's diagonal (in the spline's local
+    /// frame, where the landmarks' largest distance from their centroid is 1) trades the
+    /// interpolation of the values for a smaller bending; `λ = 0` interpolates, `λ → ∞`
+    /// tends to the least-squares affine field. For noisy landmarks (Wahba's smoothing
+    /// splines).
+    pub fn fit_smoothing(
+        points: &[Point3<f64>],
+        values: &[Vector3<f64>],
+        lambda: f64,
+    ) -> Result<Self, TpsError> {
         let n = points.len();
         if values.len() != n {
             return Err(TpsError::Input(format!("{n} points but {} values", values.len())));
@@ -73,6 +86,7 @@ impl ThinPlateSpline {
             for j in 0..n {
                 a[(i, j)] = (pi - local(&points[j])).norm();
             }
+            a[(i, i)] += lambda;
             let row = [1.0, pi.x, pi.y, pi.z];
             for c in 0..4 {
                 a[(i, n + c)] = row[c];

@@ -50,6 +50,7 @@ mod error;
 pub mod findings;
 pub mod gap;
 mod imposed;
+pub mod inverse;
 mod loads;
 pub mod measure;
 pub mod memory;

@@ -128,6 +128,7 @@ impl Prepared {
             &prescribed,
             skull.as_ref(),
         )?;
+        let prescribed = crate::measure::read::control(&mesh, prescribed, &measurements);
         let mut load_notes = load_notes;
         load_notes.extend(measurements.iter().map(crate::measure::Measured::note));
         let n_constrained = prescribed.iter().filter(|p| p.iter().any(Option::is_some)).count();

@@ -85,9 +85,14 @@ impl Run {
     /// Solves and verifies; `observer` sees every step (DR) or iteration (Newton solvers).
     pub fn solve(&mut self, observer: &mut dyn FnMut(&Progress)) -> Result<Solved, SceneError> {
         let started = Instant::now();
-        let (solution, max_penetration_before) =
+        let (solution, max_penetration_before) = if crate::inverse::has_landmarks(&self.prepared) {
+            let (p, c) = (&mut self.prepared, &mut self.composed);
+            let (s, pen, _) = crate::inverse::solve(p, c, &self.settings, None, observer)?;
+            (s, pen)
+        } else {
             solve_composed(&mut self.composed, &self.settings, observer)
-                .map_err(|e| crate::imposed::explain(self.prepared.imposed(), e))?;
+                .map_err(|e| crate::imposed::explain(self.prepared.imposed(), e))?
+        };
         let verification = verify(
             &self.prepared,
             &self.composed,

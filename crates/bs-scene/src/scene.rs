@@ -315,6 +315,14 @@ pub enum LandmarkFiles {
 }
 
 impl LandmarkFiles {
+    /// The files, comma-separated, for messages and reports.
+    pub fn describe(&self) -> String {
+        match self {
+            LandmarkFiles::Pairs(f) => f.display().to_string(),
+            LandmarkFiles::Split([a, b]) => format!("{}, {}", a.display(), b.display()),
+        }
+    }
+
     /// The files, for messages and path resolution.
     pub fn files_mut(&mut self) -> Vec<&mut PathBuf> {
         match self {
@@ -339,7 +347,7 @@ pub struct Measurement {
     /// Landmark pairs (pre-operative → intra-operative positions) anywhere in the brain.
     pub landmarks: Option<LandmarkFiles>,
     /// The boundary nodes the measurement may pull (points: the exposed surface; landmarks:
-    /// where the unknown load acts, the craniotomy).
+    /// where the unknown load acts, the craniotomy, whose displacement the fit finds).
     pub nset: Option<String>,
     /// The measurement's noise: the standard deviation of a point's error, mesh units.
     pub sigma: f64,
@@ -364,6 +372,11 @@ impl Measurement {
             (Some(_), None) if self.nset.is_none() => {
                 return Err("points needs nset: the boundary nodes the scan may pull (e.g. \
                             nset = \"CRANIOTOMY\")"
+                    .into());
+            }
+            (None, Some(_)) if self.nset.is_none() => {
+                return Err("landmarks needs nset: the boundary nodes the shift comes through \
+                            (e.g. nset = \"CRANIOTOMY\"); the fit finds their displacement"
                     .into());
             }
             (None, Some(_)) if self.skull_points.is_some() || self.rigid => {

@@ -177,7 +177,7 @@ pub fn solve_composed_from(
 /// The measurements linearised at the answer `u`: their springs (the data forces the
 /// verification balances) and their per-point state (what the reports say) are those of
 /// the answer.
-fn relinearise_at(c: &mut Composed, u: &[bs_mesh::Vector3<f64>]) {
+pub(crate) fn relinearise_at(c: &mut Composed, u: &[bs_mesh::Vector3<f64>]) {
     let Some(fit) = &mut c.fit else { return };
     let positions: Vec<bs_mesh::Point3<f64>> =
         c.model.reference().iter().zip(u).map(|(x, d)| x + d).collect();

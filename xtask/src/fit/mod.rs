@@ -1,11 +1,13 @@
 //! `cargo xtask fit`: the measurement-fit fixture and study (the truth and its scans in
-//! [`truth`], the grid of fits in [`study`], its figure in [`chart`]).
+//! [`truth`], the grid of fits in [`study`], its figure in [`chart`], the landmark cases in
+//! [`landmarks`]).
 //!
 //! * `fit fixture` writes `fixtures/fit/` (the truth, one scan of the first target case as
 //!   .csv and .ply, its scene);
 //! * `fit study [--quick]` runs the grid and writes the table and the chart of `docs/fit.md`.
 
 mod chart;
+mod landmarks;
 mod study;
 mod truth;
 
@@ -76,6 +78,15 @@ pub fn run_study(quick: bool) -> Result<(), String> {
     for (s, e) in &imposed {
         writeln!(doc, "| {s} | {} |", study::cell(e)).unwrap();
     }
+    let counts: &[usize] = if quick { &[15] } else { &[5, 15, 30] };
+    let seeds: &[u64] = if quick { &[1000] } else { &[1000, 2000, 3000] };
+    let marks: Vec<_> = counts
+        .iter()
+        .flat_map(|&n| seeds.iter().map(move |&s| (n, s)))
+        .map(|(n, s)| landmarks::case(&t, n, 1.0, s, &dir))
+        .collect();
+    writeln!(doc, "\nLandmark pairs 5–25 mm under the craniotomy (σ = 1 mm per axis; three random draws of each count), fitted through the craniotomy (`[[measurement]] landmarks`, nset = CRANIOTOMY) against today's thin-plate spline of the same pairs imposed on the craniotomy (`[[boundary]] landmarks`, `max_extrapolation = 20`):\n").unwrap();
+    doc += &landmarks::table(&marks);
     writeln!(
         doc,
         "\n{} deep nodes of {}; made by `cargo xtask fit study` in {:.0} s (2 threads).",
@@ -117,6 +128,16 @@ pub fn main(args: &[String]) -> Result<(), String> {
             println!("wrote {}", dir.join("scene.toml").display());
             Ok(())
         }
-        _ => Err("fit what? `cargo xtask fit fixture`, `fit study [--quick]` or `fit try SIGMA COVERAGE OUTLIERS MISALIGNMENT`".into()),
+        Some("landmarks") => {
+            // Landmark cases into target/fit-try (for exploring): N SIGMA.
+            let n = args.get(1).and_then(|a| a.parse().ok()).unwrap_or(15);
+            let sigma = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(1.0);
+            let seed = args.get(3).and_then(|a| a.parse().ok()).unwrap_or(1000);
+            let dir = root().join("target/fit-try");
+            let t = truth(&dir, &regions().display().to_string())?;
+            print!("{}", landmarks::table(&[landmarks::case(&t, n, sigma, seed, &dir)]));
+            Ok(())
+        }
+        _ => Err("fit what? `cargo xtask fit fixture`, `fit study [--quick]`, `fit try SIGMA COVERAGE OUTLIERS MISALIGNMENT` or `fit landmarks N SIGMA`".into()),
     }
 }

@@ -149,7 +149,10 @@ pub fn cell(e: &DeepError) -> String {
         Ok((mean, p95, _)) => format!("{mean:.2} / {p95:.2}"),
         Err(m) if m.contains("invert") => "fails: an element inverts".into(),
         Err(m) => {
-            let short: String = m.chars().take(80).collect();
+            // The message without the scene's path and the study folder (machine-specific).
+            let m = m.split_once(".toml: ").map_or(m.as_str(), |(_, rest)| rest);
+            let folder = format!("{}/", crate::util::root().join("target/fit-study").display());
+            let short: String = m.replace(&folder, "").chars().take(120).collect();
             format!("fails: {}…", crate::util::escape_cell(&short))
         }
     }

@@ -9,6 +9,7 @@ use std::path::PathBuf;
 use bs_mesh::Point3;
 
 pub(crate) mod outcome;
+pub mod pairs;
 pub(crate) mod read;
 pub(crate) mod terms;
 
@@ -48,6 +49,16 @@ pub enum MeasuredData {
         /// Bone points of the same scan, and their file.
         bone: Option<(PathBuf, Vec<Point3<f64>>)>,
     },
+    /// Landmark pairs.
+    Landmarks {
+        /// The files they were read from.
+        files: crate::scene::LandmarkFiles,
+        /// The pairs (scene frame and units) and where each was read.
+        pairs: pairs::Pairs,
+        /// Per landmark: the element holding its pre-operative position, and its material
+        /// point there.
+        anchors: Vec<(usize, bs_fit::Anchor)>,
+    },
 }
 
 impl Measured {
@@ -75,6 +86,13 @@ impl Measured {
                     ),
                     None => String::new(),
                 }
+            ),
+            MeasuredData::Landmarks { files, pairs, .. } => format!(
+                "{} landmarks {}: {} pairs fitted point-to-point, sigma {}",
+                self.key(),
+                files.describe(),
+                pairs.pre.len(),
+                self.sigma
             ),
         }
     }

@@ -30,9 +30,9 @@ pub struct RigidReport {
 /// One measurement after the fit (report.json's `measurements` entries).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MeasurementReport {
-    /// `"points"`.
+    /// `"points"` (a scanned surface) or `"landmarks"`.
     pub kind: String,
-    /// The data file.
+    /// The data file (landmarks from two markups files: both, comma-separated).
     pub file: String,
     /// The node set it pulled.
     pub nset: String,
@@ -47,12 +47,16 @@ pub struct MeasurementReport {
     pub outliers: usize,
     pub border: usize,
     pub far: usize,
-    /// RMS and largest distance of the inliers from the fitted surface.
+    /// RMS and largest distance of the inliers from the fitted surface (landmarks: of the
+    /// material points from their intra-operative positions).
     pub rms_residual: f64,
     pub max_residual: f64,
-    /// The data stiffness per area (Pa per length unit) and the area it covered.
+    /// The data stiffness per area (Pa per length unit) and the area it covered (landmarks:
+    /// 0 and 0, they are fitted through the boundary).
     pub stiffness: f64,
     pub covered_area: f64,
+    /// Model solves the fit took (landmarks: one per boundary update; a scan: 1).
+    pub solves: usize,
     /// The rigid correction, when one was estimated.
     pub rigid: Option<RigidReport>,
     /// How far the data moved the model: the largest and mean displacement of the nodes
@@ -67,10 +71,12 @@ pub struct PointRow {
     /// The measurement (from 1, as in the scene's order) and the point (from 0).
     pub measurement: usize,
     pub point: usize,
-    /// The point as read, and after the rigid correction.
+    /// The point as read, and after the rigid correction (landmarks: the intra-operative
+    /// position, twice).
     pub measured: [f64; 3],
     pub corrected: [f64; 3],
-    /// Signed distance from the fitted surface (positive outside the brain).
+    /// Signed distance from the fitted surface (positive outside the brain); landmarks: the
+    /// distance of the material point from its intra-operative position.
     pub residual: f64,
     /// Robust weight in [0, 1].
     pub weight: f64,
@@ -87,62 +93,166 @@ pub fn outcome(
     let mut reports = Vec::new();
     let mut rows = Vec::new();
     for (k, (m, term)) in p.measurements.iter().zip(&state.fits.terms).enumerate() {
-        let (MeasuredData::Surface { file, points, .. }, Term::Surface(fit)) = (&m.data, term);
-        let count = |s: PointStatus| fit.fits().iter().filter(|f| f.status == s).count();
-        let inl: Vec<f64> = fit
-            .fits()
-            .iter()
-            .filter(|f| f.status == PointStatus::Inlier)
-            .map(|f| f.residual)
-            .collect();
-        let rms = (inl.iter().map(|r| r * r).sum::<f64>() / inl.len().max(1) as f64).sqrt();
-        let pulls: Vec<f64> = fit.patch_nodes().iter().map(|&a| u[a].norm()).collect();
-        let rigid = state.rigid[k].map(|r| {
-            let (axis, angle) = r.rigid.axis_angle_degrees();
-            RigidReport {
-                axis: axis.into(),
-                angle_degrees: angle,
-                translation: r.rigid.translation.into(),
-                bone_points: r.matched,
-                bone_inliers: r.inliers,
-                bone_rms_before: r.rms_before,
-                bone_rms_after: r.rms_after,
+        match (&m.data, term) {
+            (MeasuredData::Surface { file, points, .. }, Term::Surface(fit)) => {
+                let report = surface_report(state, k, m, file, points.len(), fit, u);
+                reports.push(report);
+                rows.extend(surface_rows(k, points, fit));
             }
-        });
-        let (inliers, outliers) = (count(PointStatus::Inlier), count(PointStatus::Outlier));
-        reports.push(MeasurementReport {
-            kind: "points".into(),
-            file: file.display().to_string(),
-            nset: m.nset.clone(),
-            sigma: m.sigma,
-            scale: fit.scale(),
-            points: points.len(),
-            matched: inliers + outliers,
-            inliers,
-            outliers,
-            border: count(PointStatus::Border),
-            far: count(PointStatus::Far),
-            rms_residual: rms,
-            max_residual: inl.iter().map(|r| r.abs()).fold(0.0, f64::max),
-            stiffness: state.stiffness[k],
-            covered_area: state.covered_area[k],
-            rigid,
-            max_pull: pulls.iter().copied().fold(0.0, f64::max),
-            mean_pull: pulls.iter().sum::<f64>() / pulls.len().max(1) as f64,
-        });
-        for (i, (q, f)) in points.iter().zip(fit.fits()).enumerate() {
-            rows.push(PointRow {
-                measurement: k + 1,
-                point: i,
-                measured: q.coords.into(),
-                corrected: fit.points()[i].coords.into(),
-                residual: f.residual,
-                weight: f.weight,
-                status: f.status.name(),
-            });
+            (MeasuredData::Landmarks { files, pairs, .. }, Term::Landmarks(fit)) => {
+                reports.push(landmark_report(state, k, m, files, fit, u));
+                rows.extend(landmark_rows(k, &pairs.intra, fit));
+            }
+            _ => unreachable!("terms are composed in the measurements' order and kind"),
         }
     }
     (reports, rows)
+}
+
+/// RMS and largest absolute value of the inliers' residuals.
+fn inlier_residuals(fits: &[bs_fit::PointFit]) -> (f64, f64) {
+    let inl: Vec<f64> =
+        fits.iter().filter(|f| f.status == PointStatus::Inlier).map(|f| f.residual).collect();
+    let rms = (inl.iter().map(|r| r * r).sum::<f64>() / inl.len().max(1) as f64).sqrt();
+    (rms, inl.iter().map(|r| r.abs()).fold(0.0, f64::max))
+}
+
+fn count(fits: &[bs_fit::PointFit], s: PointStatus) -> usize {
+    fits.iter().filter(|f| f.status == s).count()
+}
+
+fn surface_report(
+    state: &FitState,
+    k: usize,
+    m: &super::Measured,
+    file: &std::path::Path,
+    points: usize,
+    fit: &bs_fit::SurfaceFit,
+    u: &[Vector3<f64>],
+) -> MeasurementReport {
+    let (rms, max) = inlier_residuals(fit.fits());
+    let pulls: Vec<f64> = fit.patch_nodes().iter().map(|&a| u[a].norm()).collect();
+    let rigid = state.rigid[k].map(|r| {
+        let (axis, angle) = r.rigid.axis_angle_degrees();
+        RigidReport {
+            axis: axis.into(),
+            angle_degrees: angle,
+            translation: r.rigid.translation.into(),
+            bone_points: r.matched,
+            bone_inliers: r.inliers,
+            bone_rms_before: r.rms_before,
+            bone_rms_after: r.rms_after,
+        }
+    });
+    let (inliers, outliers) =
+        (count(fit.fits(), PointStatus::Inlier), count(fit.fits(), PointStatus::Outlier));
+    MeasurementReport {
+        kind: "points".into(),
+        file: file.display().to_string(),
+        nset: m.nset.clone(),
+        sigma: m.sigma,
+        scale: fit.scale(),
+        points,
+        matched: inliers + outliers,
+        inliers,
+        outliers,
+        border: count(fit.fits(), PointStatus::Border),
+        far: count(fit.fits(), PointStatus::Far),
+        rms_residual: rms,
+        max_residual: max,
+        stiffness: state.stiffness[k],
+        covered_area: state.covered_area[k],
+        solves: state.solves,
+        rigid,
+        max_pull: pulls.iter().copied().fold(0.0, f64::max),
+        mean_pull: pulls.iter().sum::<f64>() / pulls.len().max(1) as f64,
+    }
+}
+
+fn surface_rows(
+    k: usize,
+    points: &[bs_mesh::Point3<f64>],
+    fit: &bs_fit::SurfaceFit,
+) -> Vec<PointRow> {
+    points
+        .iter()
+        .zip(fit.fits())
+        .enumerate()
+        .map(|(i, (q, f))| PointRow {
+            measurement: k + 1,
+            point: i,
+            measured: q.coords.into(),
+            corrected: fit.points()[i].coords.into(),
+            residual: f.residual,
+            weight: f.weight,
+            status: f.status.name(),
+        })
+        .collect()
+}
+
+/// Landmarks: residuals are distances of each material point from its intra-operative
+/// position (never negative); the pull is the displacement at the material points.
+fn landmark_report(
+    state: &FitState,
+    k: usize,
+    m: &super::Measured,
+    files: &crate::scene::LandmarkFiles,
+    fit: &bs_fit::LandmarkFit,
+    u: &[Vector3<f64>],
+) -> MeasurementReport {
+    let (rms, max) = inlier_residuals(fit.fits());
+    let pulls: Vec<f64> = fit
+        .anchors()
+        .iter()
+        .map(|a| {
+            a.nodes.iter().zip(&a.weights).map(|(&n, &b)| u[n] * b).sum::<Vector3<f64>>().norm()
+        })
+        .collect();
+    let n = fit.fits().len();
+    let (inliers, outliers) =
+        (count(fit.fits(), PointStatus::Inlier), count(fit.fits(), PointStatus::Outlier));
+    MeasurementReport {
+        kind: "landmarks".into(),
+        file: files.describe(),
+        nset: m.nset.clone(),
+        sigma: m.sigma,
+        scale: fit.scale(),
+        points: n,
+        matched: n,
+        inliers,
+        outliers,
+        border: 0,
+        far: 0,
+        rms_residual: rms,
+        max_residual: max,
+        stiffness: state.stiffness[k],
+        covered_area: 0.0,
+        solves: state.solves,
+        rigid: None,
+        max_pull: pulls.iter().copied().fold(0.0, f64::max),
+        mean_pull: pulls.iter().sum::<f64>() / pulls.len().max(1) as f64,
+    }
+}
+
+fn landmark_rows(
+    k: usize,
+    intra: &[bs_mesh::Point3<f64>],
+    fit: &bs_fit::LandmarkFit,
+) -> Vec<PointRow> {
+    intra
+        .iter()
+        .zip(fit.fits())
+        .enumerate()
+        .map(|(i, (q, f))| PointRow {
+            measurement: k + 1,
+            point: i,
+            measured: q.coords.into(),
+            corrected: q.coords.into(),
+            residual: f.residual,
+            weight: f.weight,
+            status: f.status.name(),
+        })
+        .collect()
 }
 
 /// residuals.csv's text: a header, then one line per point.

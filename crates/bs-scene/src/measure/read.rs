@@ -13,7 +13,7 @@ use bs_mesh::{Mesh, Point3, TriSurface};
 use super::{Measured, MeasuredData};
 use crate::SceneError;
 use crate::boundary::{Prescribed, names};
-use crate::scene::{DEFAULT_MEASUREMENT_DISTANCE_MM, Measurement, Scene};
+use crate::scene::{DEFAULT_MEASUREMENT_DISTANCE_MM, LandmarkFiles, Measurement, Scene};
 
 /// Reads and checks every measurement of `scene` on `mesh`; `prescribed` are the
 /// boundaries' components (a fitted node must be free).
@@ -24,6 +24,16 @@ pub(crate) fn read_measurements(
     prescribed: &Prescribed,
     skull: Option<&TriSurface>,
 ) -> Result<Vec<Measured>, SceneError> {
+    let landmarks = scene.measurements.iter().filter(|m| m.landmarks.is_some()).count();
+    if landmarks > 0 && scene.measurements.len() > 1 {
+        return Err(SceneError::Unsupported {
+            scene: sp.to_path_buf(),
+            message: "landmarks are fitted alone in this version: one [[measurement]] with \
+                      landmarks, and no other [[measurement]] (merge the pair files into one, or \
+                      fit the scan alone)"
+                .into(),
+        });
+    }
     scene
         .measurements
         .iter()
@@ -46,14 +56,10 @@ fn read_one(
         m.max_distance.unwrap_or(DEFAULT_MEASUREMENT_DISTANCE_MM * 1e-3 / scene.units.metres());
     let nset = m.nset.clone().unwrap_or_default();
     let Some(file) = &m.points else {
-        return Err(SceneError::Unsupported {
-            scene: sp.to_path_buf(),
-            message: format!(
-                "{}: fitting landmarks is not available in this version; impose them with a \
-                 [[boundary]] landmarks = ... instead",
-                key("landmarks")
-            ),
-        });
+        let files = m.landmarks.clone().expect("validated: points or landmarks");
+        control_nodes(sp, scene, mesh, prescribed, &key("nset"), &nset)?;
+        let data = read_landmarks(sp, scene, mesh, &key("landmarks"), files)?;
+        return Ok(Measured { index: i, nset, sigma: m.sigma, max_distance, rigid: false, data });
     };
     let (faces, face_elements) = patch_faces(sp, scene, mesh, prescribed, &key("nset"), &nset)?;
     let points = read_cloud(sp, &key("points"), file)?;
@@ -81,6 +87,115 @@ fn read_one(
         rigid: m.rigid,
         data: MeasuredData::Surface { file: file.clone(), points, faces, face_elements, bone },
     })
+}
+
+/// Landmarks farther than this outside the mesh (mm) are refused: a landmark picked on the
+/// brain's surface in the image may lie a voxel outside the meshed surface, not more.
+const LANDMARK_OUTSIDE_MM: f64 = 1.0;
+
+/// Landmark pairs read into the scene's frame, each pre-operative position located in its
+/// tetrahedron (its material point); one outside the brain is an error naming its line.
+fn read_landmarks(
+    sp: &Path,
+    scene: &Scene,
+    mesh: &Mesh,
+    key: &str,
+    files: LandmarkFiles,
+) -> Result<MeasuredData, SceneError> {
+    let err = |message: String| SceneError::Read {
+        scene: sp.to_path_buf(),
+        key: key.to_string(),
+        message,
+    };
+    let pairs = super::pairs::read_pairs(&files, scene.space).map_err(err)?;
+    let locator = bs_mesh::TetLocator::new(mesh)
+        .map_err(|e| err(format!("landmarks are located in the mesh's tetrahedra: {e}")))?;
+    let tolerance = LANDMARK_OUTSIDE_MM * 1e-3 / scene.units.metres();
+    let mut anchors = Vec::with_capacity(pairs.pre.len());
+    for (p, origin) in pairs.pre.iter().zip(&pairs.origin) {
+        let at = locator.locate(p);
+        if at.distance > tolerance {
+            let file = match &files {
+                LandmarkFiles::Pairs(f) | LandmarkFiles::Split([f, _]) => f.display(),
+            };
+            return Err(err(format!(
+                "{file}: {origin}: the pre-operative landmark ({:.2}, {:.2}, {:.2}) lies {:.2}                  outside the brain mesh (at most {tolerance} is accepted): a landmark is a                  point of the brain; check its frame ({}) and units, or drop it",
+                p.x,
+                p.y,
+                p.z,
+                at.distance,
+                scene.space.space().name()
+            )));
+        }
+        let nodes = locator.element_nodes(at.element);
+        anchors.push((at.element, bs_fit::Anchor { nodes, weights: at.weights }));
+    }
+    Ok(MeasuredData::Landmarks { files, pairs, anchors })
+}
+
+/// The nodes of a landmark measurement's set, whose displacement the fit finds: they must
+/// exist, lie on the boundary and be free of every `[[boundary]]`.
+fn control_nodes(
+    sp: &Path,
+    scene: &Scene,
+    mesh: &Mesh,
+    prescribed: &Prescribed,
+    key: &str,
+    name: &str,
+) -> Result<(), SceneError> {
+    let err = |message: String| SceneError::Set {
+        scene: sp.to_path_buf(),
+        key: key.to_string(),
+        set: name.to_string(),
+        message,
+    };
+    let nodes = mesh.node_set(name).ok_or_else(|| {
+        err(format!(
+            "no such node set in {} (it has: {})",
+            scene.mesh.file.display(),
+            names(mesh.node_sets.keys())
+        ))
+    })?;
+    if let Some(&n) = nodes.iter().find(|&&n| prescribed[n].iter().any(Option::is_some)) {
+        return Err(err(format!(
+            "node {} is also held by a [[boundary]]: the landmarks' fit decides the \
+             displacement of every node of its set; take the node out of one of them",
+            mesh.node_ids[n]
+        )));
+    }
+    let boundary = mesh.boundary();
+    let mut on = vec![false; mesh.nodes.len()];
+    for &v in &boundary.volume_node {
+        on[v] = true;
+    }
+    if let Some(&n) = nodes.iter().find(|&&n| !on[n]) {
+        return Err(err(format!(
+            "node {} is inside the brain: the landmarks' set is the boundary the shift comes \
+             through (e.g. the craniotomy's exposed nodes)",
+            mesh.node_ids[n]
+        )));
+    }
+    Ok(())
+}
+
+/// `prescribed` with every node of a landmark measurement's set prescribed in all three
+/// components (at zero until the fit sets them): the solver's preparation holds them, the
+/// fit changes their values.
+pub(crate) fn control(
+    mesh: &Mesh,
+    mut prescribed: Prescribed,
+    measurements: &[Measured],
+) -> Prescribed {
+    for m in measurements {
+        if let MeasuredData::Landmarks { .. } = m.data
+            && let Some(nodes) = mesh.node_set(&m.nset)
+        {
+            for &n in nodes {
+                prescribed[n] = [Some(0.0); 3];
+            }
+        }
+    }
+    prescribed
 }
 
 /// A point cloud, refused when empty.

@@ -5,7 +5,7 @@
 
 use bs_contact::Patch;
 use bs_dr::{DataTerm, Springs};
-use bs_fit::{Fits, RigidFit, RigidParams, SurfaceFit, SurfaceParams, Term};
+use bs_fit::{Fits, LandmarkFit, RigidFit, RigidParams, SurfaceFit, SurfaceParams, Term};
 use bs_mesh::{Point3, TriSurface};
 
 use super::{Measured, MeasuredData};
@@ -29,6 +29,9 @@ pub struct FitState {
     pub covered_area: Vec<f64>,
     /// The springs of the last linearisation at the answer (verification's data forces).
     pub springs: Springs,
+    /// Model solves the last fit took (landmarks are fitted by a sequence of solves,
+    /// crate::inverse; a scan by one).
+    pub solves: usize,
     /// How far the data pull at composition: the largest matched residual (the length
     /// scale of the fit, in place of a prescribed displacement's).
     pub reach: f64,
@@ -43,31 +46,14 @@ pub fn compose_fits(p: &Prepared) -> Result<Option<FitState>, SceneError> {
     let (mut rigid, mut stiffness, mut covered) = (Vec::new(), Vec::new(), Vec::new());
     let mut reach = 0.0f64;
     for m in &p.measurements {
-        let MeasuredData::Surface { points, faces, face_elements, bone, .. } = &m.data;
-        let fit = match bone {
-            Some((_, b)) if m.rigid => Some(estimate_rigid(p, m, b)?),
-            _ => None,
+        let (term, fit, kappa, area, pull) = match &m.data {
+            MeasuredData::Surface { points, faces, face_elements, bone, .. } => {
+                surface_term(p, m, points, faces, face_elements, bone.as_ref())?
+            }
+            MeasuredData::Landmarks { pairs, anchors, .. } => landmark_term(m, pairs, anchors),
         };
-        let corrected: Vec<Point3<f64>> = match &fit {
-            Some(f) => points.iter().map(|q| f.rigid.apply(q)).collect(),
-            None => points.clone(),
-        };
-        let mu = face_elements.iter().map(|&e| shear_modulus(p, e)).fold(0.0f64, f64::max);
-        let params = SurfaceParams { sigma: m.sigma, stiffness: 1.0, max_distance: m.max_distance };
-        let mut term = SurfaceFit::new(corrected, faces, &p.mesh.nodes, params);
-        let mut springs = Springs::new();
-        term.linearise(&p.mesh.nodes, &mut springs);
-        term.classify(&p.mesh.nodes);
-        let area = term.covered_area();
-        let kappa = bs_fit::surface_stiffness(mu, m.sigma, area, term.mean_edge());
-        term.set_stiffness(kappa);
-        reach = term
-            .fits()
-            .iter()
-            .filter(|f| f.status == bs_fit::PointStatus::Inlier)
-            .map(|f| f.residual.abs())
-            .fold(reach, f64::max);
-        terms.push(Term::Surface(term));
+        reach = reach.max(pull);
+        terms.push(term);
         rigid.push(fit);
         stiffness.push(kappa);
         covered.push(area);
@@ -78,8 +64,65 @@ pub fn compose_fits(p: &Prepared) -> Result<Option<FitState>, SceneError> {
         stiffness,
         covered_area: covered,
         springs: Springs::new(),
+        solves: 1,
         reach,
     }))
+}
+
+/// One composed measurement: its term, its rigid fit, its stiffness, the area it covers
+/// and how far it pulls.
+type Composed = (Term, Option<RigidFit>, f64, f64, f64);
+
+/// A scan's term: misalignment undone, stiffness per area from the tissue under it.
+fn surface_term(
+    p: &Prepared,
+    m: &Measured,
+    points: &[Point3<f64>],
+    faces: &[[usize; 3]],
+    face_elements: &[usize],
+    bone: Option<&(std::path::PathBuf, Vec<Point3<f64>>)>,
+) -> Result<Composed, SceneError> {
+    let fit = match bone {
+        Some((_, b)) if m.rigid => Some(estimate_rigid(p, m, b)?),
+        _ => None,
+    };
+    let corrected: Vec<Point3<f64>> = match &fit {
+        Some(f) => points.iter().map(|q| f.rigid.apply(q)).collect(),
+        None => points.to_vec(),
+    };
+    let mu = face_elements.iter().map(|&e| shear_modulus(p, e)).fold(0.0f64, f64::max);
+    let params = SurfaceParams { sigma: m.sigma, stiffness: 1.0, max_distance: m.max_distance };
+    let mut term = SurfaceFit::new(corrected, faces, &p.mesh.nodes, params);
+    let mut springs = Springs::new();
+    term.linearise(&p.mesh.nodes, &mut springs);
+    term.classify(&p.mesh.nodes);
+    let area = term.covered_area();
+    let kappa = bs_fit::surface_stiffness(mu, m.sigma, area, term.mean_edge());
+    term.set_stiffness(kappa);
+    let pull = term
+        .fits()
+        .iter()
+        .filter(|f| f.status == bs_fit::PointStatus::Inlier)
+        .map(|f| f.residual.abs())
+        .fold(0.0, f64::max);
+    Ok((Term::Surface(Box::new(term)), fit, kappa, area, pull))
+}
+
+/// Landmarks' term: it measures (stiffness zero); the fit goes through the boundary
+/// (crate::inverse). Its pull is the largest landmark displacement.
+fn landmark_term(
+    m: &Measured,
+    pairs: &super::pairs::Pairs,
+    anchors: &[(usize, bs_fit::Anchor)],
+) -> Composed {
+    let pull = pairs.pre.iter().zip(&pairs.intra).map(|(a, b)| (b - a).norm()).fold(0.0, f64::max);
+    let fit = LandmarkFit::new(
+        anchors.iter().map(|(_, a)| *a).collect(),
+        pairs.intra.clone(),
+        m.sigma,
+        vec![0.0; anchors.len()],
+    );
+    (Term::Landmarks(fit), None, 0.0, 0.0, pull)
 }
 
 /// The shear modulus of element `e`'s material (Pa).

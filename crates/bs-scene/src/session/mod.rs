@@ -99,9 +99,15 @@ impl Session {
         let Session { run, state, warm, history, .. } = self;
         let secant = history.secant(&run.prepared.prescribed);
         let from = warm.then_some(WarmStart { state, secant });
-        let (solution, max_penetration_before) =
+        let (solution, max_penetration_before) = if crate::inverse::has_landmarks(&run.prepared) {
+            let warm = from.map(|w| w.state);
+            let (p, c) = (&mut run.prepared, &mut run.composed);
+            let (s, pen, _) = crate::inverse::solve(p, c, &run.settings, warm, observer)?;
+            (s, pen)
+        } else {
             solve_composed_from(&mut run.composed, &run.settings, from, observer)
-                .map_err(|e| crate::imposed::explain(run.prepared.imposed(), e))?;
+                .map_err(|e| crate::imposed::explain(run.prepared.imposed(), e))?
+        };
         let tolerance = run.settings.tolerance;
         let verification =
             verify(&run.prepared, &run.composed, &solution.displacements, tolerance)?;
