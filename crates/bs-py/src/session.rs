@@ -90,6 +90,23 @@ impl Session {
         Ok(out)
     }
 
+    /// The new scans of one `update` call: node set and points.
+    fn scans(
+        &self,
+        py: Python<'_>,
+        points: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<Vec<(String, Vec<Point3<f64>>)>> {
+        let mut out = Vec::new();
+        for (k, v) in points.into_iter().flat_map(|d| d.iter()) {
+            let name: String = k
+                .extract()
+                .map_err(|_| PyValueError::new_err("points: keys are node set names"))?;
+            let rows = f64_rows(py, &v, 3, &format!("points['{name}']"))?;
+            out.push((name, rows.into_iter().map(Point3::from).collect()));
+        }
+        Ok(out)
+    }
+
     /// Writes the scratch file `file_name` with `write`; returns its path.
     fn scratch_file(
         &self,
@@ -165,19 +182,30 @@ impl Session {
     /// Solves new measurements warm from the last good state and verifies the result.
     /// `displacements={"SET": [dx, dy, dz]}` (uniform) or an (n, 3) array in the order of
     /// `set_nodes("SET")`; `surface={"SET": path or (points, triangles)}`;
-    /// `landmarks={"SET": csv path or (pre, intra)}`. Boundaries not named keep their last
-    /// values. On an error the session stays at its last good state.
+    /// `landmarks={"SET": csv path or (pre, intra)}`: new values of prescribed boundaries
+    /// (boundaries not named keep their last values). `points={"SET": (m, 3) array}`: a new
+    /// scan of the `[[measurement]]` on that node set, fitted (scene frame and units, before
+    /// the scene's rigid correction; `measured_sets()` lists the keys); not in the same call
+    /// as boundary values. On an error the session stays at its last good state.
     /// `progress`: called with a dict per solver iteration, as in `Scene.run`.
-    #[pyo3(signature = (displacements=None, surface=None, landmarks=None, progress=None))]
+    #[pyo3(signature = (displacements=None, surface=None, landmarks=None, points=None, progress=None))]
     fn update(
         &self,
         py: Python<'_>,
         displacements: Option<&Bound<'_, PyDict>>,
         surface: Option<&Bound<'_, PyDict>>,
         landmarks: Option<&Bound<'_, PyDict>>,
+        points: Option<&Bound<'_, PyDict>>,
         progress: Option<Py<PyAny>>,
     ) -> PyResult<RunResult> {
         let loads = self.loads(py, displacements, surface, landmarks)?;
+        let scans = self.scans(py, points)?;
+        if !scans.is_empty() && !loads.is_empty() {
+            return Err(PyValueError::new_err(
+                "update: give new scans (points=) or new boundary values (displacements=, \
+                 surface=, landmarks=) in one call, not both; call update twice",
+            ));
+        }
         let started = Instant::now();
         let mut callback_error: Option<PyErr> = None;
         let outcome = py.detach(|| {
@@ -185,7 +213,9 @@ impl Session {
                 let threads = rayon::current_num_threads();
                 let mut s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
                 let mut observe = observer(progress.as_ref(), &mut callback_error);
-                let solved = if loads.is_empty() {
+                let solved = if !scans.is_empty() {
+                    s.update_points(&scans, &mut observe)
+                } else if loads.is_empty() {
                     s.solve(&mut observe)
                 } else {
                     s.update(&loads, &mut observe)
@@ -213,6 +243,13 @@ impl Session {
         let nodes = s.set_nodes(name).map_err(|e| scene_err(py, e))?;
         let ids = &s.run().prepared.mesh.node_ids;
         Ok(nodes.into_iter().map(|n| ids[n]).collect())
+    }
+
+    /// The node sets of the scene's scanned-surface measurements: the keys of `update`'s
+    /// `points`.
+    fn measured_sets(&self) -> Vec<String> {
+        let s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        s.measured_sets().into_iter().map(str::to_string).collect()
     }
 
     /// The node sets of the scene's boundaries that prescribe displacements: the keys

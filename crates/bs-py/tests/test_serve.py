@@ -73,8 +73,9 @@ def surface_message(ellipsoid, dz):
 
 
 class ServerProcess:
-    def __init__(self, fixtures, *extra, program=(sys.executable, "-m", "brainshift.serve")):
-        cmd = [*program, str(fixtures / SCENE), "--image", str(fixtures / IMAGE), "--port", "0",
+    def __init__(self, fixtures, *extra, program=(sys.executable, "-m", "brainshift.serve"), scene=SCENE,
+                 image=IMAGE):
+        cmd = [*program, str(fixtures / scene), "--image", str(fixtures / image), "--port", "0",
                "--threads", "1", *extra]
         env = dict(os.environ, BRAINSHIFT_PYTHON=sys.executable)
         self.p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
@@ -321,6 +322,7 @@ def test_refused_measurements_are_answered_and_the_session_keeps_its_state(serve
         (pyigtl.PointMessage([[0, 0, 0]] * 3, device_name="IntraopLandmarks"), "'PreopLandmarks' first"),
         (pyigtl.StringMessage("node_id,ux,uy,uz\n1,0,0,x\n", device_name="Displacements"), "line 2"),
         (pyigtl.TransformMessage(np.eye(4), device_name="Tool"), "not a measurement"),
+        (pyigtl.PointMessage([[0, 0, 0]] * 3, device_name="IntraopPoints"), "no [[measurement]]"),
     ]
     for message, text in bad:
         c.send_message(message, wait=True)
@@ -538,3 +540,27 @@ def test_the_server_keeps_large_buffers_in_the_heap_on_glibc():
     if not sys.platform.startswith("linux") or platform.libc_ver()[0] != "glibc":
         pytest.skip("glibc only")
     assert serve.keep_large_buffers()
+
+
+def test_intraop_points_are_fitted_and_the_report_says_how(fixtures):
+    """fixtures/fit (its craniotomy measured, nothing prescribed: no --set needed): a scan
+    sent as POINT 'IntraopPoints' is fitted; the Report's measurements count its points and
+    inliers as a session's update does. Boundary messages are refused there."""
+    import json
+
+    s = ServerProcess(fixtures, scene="fit/scene.toml", image="mni152/t1.nii.gz")
+    try:
+        c = client(s.port)
+        scan = np.loadtxt(fixtures / "fit" / "scan.csv", delimiter=",", skiprows=1)
+        c.send_message(pyigtl.PointMessage(scan, device_name="IntraopPoints"), wait=True)
+        r = c.wait_for_message("Report", timeout=180)
+        assert r is not None, "".join(s.lines[-10:])
+        m = json.loads(r.string)["measurements"][0]
+        assert m["kind"] == "points" and m["points"] == len(scan), m
+        assert m["inliers"] > 0.9 * len(scan), m
+        c.send_message(pyigtl.StringMessage("node_id,ux,uy,uz\n", device_name="Displacements"), wait=True)
+        e = c.wait_for_message("Error", timeout=60)
+        assert e is not None and "prescribes no node set" in e.string, e and e.string
+        c.stop()
+    finally:
+        s.stop()

@@ -89,3 +89,26 @@ def test_surface_and_landmarks_given_as_arrays(fixtures):
     with pytest.raises(ValueError, match="file path or a pair of arrays"):
         session.update(surface={"ZMAX": 3})
     assert session.update().report["converged"]
+
+
+def test_a_new_scan_is_fitted_warm(fixtures):
+    """fixtures/fit: a session's first solve fits the scene's scan; the same scan given as
+    an array lands at the same answer (to the settling of the scan's planes, docs/fit.md),
+    a deeper scan moves the window deeper, and bad scans are refused."""
+    fit = fixtures / "fit"
+    session = Session(Scene.from_toml(fit / "scene.toml"))
+    assert session.measured_sets() == ["CRANIOTOMY"]
+    first = session.update()
+    scan = np.loadtxt(fit / "scan.csv", delimiter=",", skiprows=1)
+    again = session.update(points={"CRANIOTOMY": scan})
+    assert np.abs(again.displacements - first.displacements).max() < 0.2
+    m = again.report["measurements"][0]
+    assert m["points"] == len(scan) and m["inliers"] > 0.9 * len(scan)
+    deeper = session.update(points={"CRANIOTOMY": scan - [0.0, 0.0, 1.0]})
+    assert deeper.report["measurements"][0]["mean_pull"] > m["mean_pull"] + 0.5
+    with pytest.raises(BrainshiftError, match="scanned node sets are: CRANIOTOMY"):
+        session.update(points={"TOP": scan})
+    with pytest.raises(BrainshiftError, match="none of its"):
+        session.update(points={"CRANIOTOMY": scan * 1e-3})
+    with pytest.raises(ValueError, match="not both"):
+        session.update(points={"CRANIOTOMY": scan}, displacements={"FIXED": [0.0, 0.0, 0.0]})

@@ -204,9 +204,11 @@ def _cells(raw: bytes, count: int, what: str, h: Header) -> list:
     return cells
 
 
-def unpack_polydata(h: Header, body: bytes) -> Tuple[np.ndarray, np.ndarray]:
+def unpack_polydata(h: Header, body: bytes, triangles: bool = True) -> Tuple[np.ndarray, np.ndarray]:
     """Points (n, 3) float64 and triangles (m, 3) int64 of a POLYDATA message: polygons
-    fanned into triangles, triangle strips split; vertices, lines and attributes ignored."""
+    fanned into triangles, triangle strips split; vertices, lines and attributes ignored.
+    With ``triangles=False`` a point cloud: the points, and whatever triangles there are
+    (none is not an error)."""
     c = content(h, body)
     if len(c) < POLYDATA_HEADER.size:
         raise MessageError(f"{h}: shorter than the 40-byte POLYDATA header")
@@ -236,9 +238,11 @@ def unpack_polydata(h: Header, body: bytes) -> Tuple[np.ndarray, np.ndarray]:
             ]
         )
     t = np.concatenate([np.asarray(x, dtype=np.int64).reshape(-1, 3) for x in tris] or [np.zeros((0, 3), np.int64)])
-    if len(t) == 0:
+    if len(t) == 0 and triangles:
         raise MessageError(f"{h}: no triangles (polygons or triangle strips) to measure with")
-    if t.max() >= npts:
+    if npts == 0:
+        raise MessageError(f"{h}: no points")
+    if len(t) and t.max() >= npts:
         raise MessageError(f"{h}: a cell refers to point {int(t.max())}, there are {npts}")
     if not np.isfinite(points).all():
         raise MessageError(f"{h}: a point is not finite")

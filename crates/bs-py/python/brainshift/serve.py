@@ -22,7 +22,11 @@ and unit):
   when both lists carry the same unique names, else by order), as a ``landmarks`` load;
   the pre-operative list is kept for later intra-operative ones;
 * STRING ``Displacements``: CSV ``node_id,ux,uy,uz`` with a header line, one row per node
-  of the set, in the scene's frame and unit, as ``displacement_file``.
+  of the set, in the scene's frame and unit, as ``displacement_file``;
+* POINT or POLYDATA ``IntraopPoints``: a new scan (its points; triangles, if any, ignored)
+  of the scene's ``[[measurement]]`` with points, *fitted* as that measurement is
+  (docs/fit.md); the Report's ``measurements`` say how (inliers, residual RMS and max). A
+  scene whose only intra-operative data are measurements needs no ``--set``.
 
 A refused message, a load the solver cannot carry, or a result that fails verification is
 answered with STRING ``Error`` (the text the command line prints) and the session stays at
@@ -109,20 +113,23 @@ class Brainshift:
         self.session = Session(s, threads=threads)
         self.image = read_image(image)
         sets = self.session.prescribed_sets()
+        self.measured = self.session.measured_sets()
         if set_name is None:
-            if len(sets) != 1:
+            if len(sets) == 1:
+                set_name = sets[0]
+            elif sets or not self.measured:
                 raise BrainshiftError(
                     f"{scene}: the scene prescribes {len(sets)} node sets ({', '.join(sets) or 'none'}); "
                     "name the one measurements move with --set"
                 )
-            set_name = sets[0]
         elif set_name not in sets:
             raise BrainshiftError(
                 f"{scene}: --set {set_name}: not a prescribed node set of the scene "
                 f"(prescribed: {', '.join(sets) or 'none'})"
             )
         self.set_name = set_name
-        self.set_ids = np.asarray(self.session.set_nodes(set_name), dtype=np.int64)
+        ids = self.session.set_nodes(set_name) if set_name is not None else []
+        self.set_ids = np.asarray(ids, dtype=np.int64)
         self.field = field
         self.verbose = verbose
         self.surface = surface
@@ -136,6 +143,21 @@ class Brainshift:
         message that only stores something; raises MessageError."""
         pyigtl = _pyigtl()
         key = (h.type, h.device)
+        if key in (("POINT", "IntraopPoints"), ("POLYDATA", "IntraopPoints")):
+            if not self.measured:
+                raise igtl.MessageError(
+                    f"{h}: the scene has no [[measurement]] with points to fit (IntraopSurface imposes a surface)"
+                )
+            if h.type == "POINT":
+                points = igtl.points_of(igtl.unpack_with(pyigtl.PointMessage, h, body), h)
+            else:
+                points, _ = igtl.unpack_polydata(h, body, triangles=False)
+            self.log(f"  {h}: {len(points)} scanned points for {self.measured[0]}")
+            return {"points": {self.measured[0]: self.frame.to_scene(points)}}
+        if self.set_name is None:
+            raise igtl.MessageError(
+                f"{h}: the scene prescribes no node set to move; it takes POINT or POLYDATA 'IntraopPoints'"
+            )
         if key == ("POLYDATA", "IntraopSurface"):
             points, tris = igtl.unpack_polydata(h, body)
             self.log(f"  {h}: {len(points)} points, {len(tris)} triangles")
@@ -161,7 +183,8 @@ class Brainshift:
             return {"displacements": {self.set_name: d}}
         raise igtl.MessageError(
             f"{h}: not a measurement this server takes; it takes POLYDATA 'IntraopSurface', "
-            "POINT 'PreopLandmarks' + 'IntraopLandmarks', or STRING 'Displacements'"
+            "POINT 'PreopLandmarks' + 'IntraopLandmarks', STRING 'Displacements', or POINT/POLYDATA "
+            "'IntraopPoints' (a scan to fit)"
         )
 
     def _progress(self, p: dict) -> None:

@@ -276,7 +276,7 @@ fn patch_faces(
 /// configuration): a scan in the wrong frame or units, where every point would be an
 /// outlier. Says which reading would fit: LPS ↔ RAS, or metres.
 #[allow(clippy::too_many_arguments)]
-fn check_frame(
+pub(crate) fn check_frame(
     sp: &Path,
     scene: &Scene,
     mesh: &Mesh,

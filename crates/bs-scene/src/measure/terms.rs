@@ -126,7 +126,7 @@ fn landmark_term(
 }
 
 /// The shear modulus of element `e`'s material (Pa).
-fn shear_modulus(p: &Prepared, e: usize) -> f64 {
+pub(crate) fn shear_modulus(p: &Prepared, e: usize) -> f64 {
     p.scene.regions[p.region_of_element[e]].material.moduli().map_or(0.0, |m| m.mu)
 }
 

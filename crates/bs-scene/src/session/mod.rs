@@ -23,6 +23,7 @@ use crate::solve::solve_composed_from;
 use crate::verify::verify;
 
 mod history;
+mod points;
 
 use history::History;
 pub use history::{SECANT_DEVIATION, secant_ratio};
