@@ -39,6 +39,7 @@
 
 mod bench_contact;
 mod bench_e2e;
+mod bench_fit;
 mod bench_mesh;
 mod bench_serve;
 mod bench_solver;
@@ -171,10 +172,11 @@ fn main() -> ExitCode {
             Some("mesh") => report(bench_mesh::main(), "bench mesh"),
             Some("warp") => report(bench_warp::main(), "bench warp"),
             Some("update") => report(bench_update::main(&args[2..]), "bench update"),
+            Some("fit") => report(bench_fit::main(), "bench fit"),
             Some("serve") => report(bench_serve::main(&args[2..]), "bench serve"),
             _ => {
                 eprintln!(
-                    "bench what? `cargo xtask bench solver`, `bench contact`, `bench e2e`, `bench mesh`, `bench warp`, `bench update` or `bench serve`"
+                    "bench what? `cargo xtask bench solver`, `bench contact`, `bench e2e`, `bench mesh`, `bench warp`, `bench update`, `bench fit` or `bench serve`"
                 );
                 ExitCode::from(2)
             }

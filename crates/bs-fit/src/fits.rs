@@ -39,27 +39,6 @@ impl Fits {
         Fits { terms, scratch: Springs::new() }
     }
 
-    /// How far the scans' patches moved since their planes were found, in radii (the
-    /// largest; 0 without scans).
-    pub fn drift(&self, positions: &[Point3<f64>]) -> f64 {
-        self.terms
-            .iter()
-            .map(|t| match t {
-                Term::Surface(s) => s.drift(positions),
-                Term::Landmarks(_) => 0.0,
-            })
-            .fold(0.0, f64::max)
-    }
-
-    /// Every scan's planes found again at the next linearisation.
-    pub fn refresh(&mut self) {
-        for t in &mut self.terms {
-            if let Term::Surface(s) = t {
-                s.refresh();
-            }
-        }
-    }
-
     /// Measures every measurement's data against the model at `positions` (for reports).
     pub fn classify(&mut self, positions: &[Point3<f64>]) {
         for t in &mut self.terms {

@@ -184,9 +184,10 @@ impl Session {
     /// `set_nodes("SET")`; `surface={"SET": path or (points, triangles)}`;
     /// `landmarks={"SET": csv path or (pre, intra)}`: new values of prescribed boundaries
     /// (boundaries not named keep their last values). `points={"SET": (m, 3) array}`: a new
-    /// scan of the `[[measurement]]` on that node set, fitted (scene frame and units, before
-    /// the scene's rigid correction; `measured_sets()` lists the keys); not in the same call
-    /// as boundary values. On an error the session stays at its last good state.
+    /// scan of the `[[measurement]]` on that node set, fitted from the reference state with
+    /// the session's preparation (scene frame and units, before the scene's rigid
+    /// correction; `measured_sets()` lists the keys); not in the same call as boundary
+    /// values. On an error the session stays at its last good state.
     /// `progress`: called with a dict per solver iteration, as in `Scene.run`.
     #[pyo3(signature = (displacements=None, surface=None, landmarks=None, points=None, progress=None))]
     fn update(

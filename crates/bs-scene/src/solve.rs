@@ -112,49 +112,6 @@ pub fn solve_composed_from(
     warm: Option<WarmStart<'_>>,
     observer: &mut dyn FnMut(&Progress),
 ) -> Result<(Solution, f64), SolveError> {
-    let (mut solution, mut penetration) = solve_once(c, s, warm, observer)?;
-    if s.kind != SolverKind::NewtonKrylov {
-        return Ok((solution, penetration));
-    }
-    for _ in 0..SETTLE_ROUNDS {
-        let Some(fit) = &mut c.fit else { break };
-        let positions: Vec<bs_mesh::Point3<f64>> =
-            c.model.reference().iter().zip(&solution.displacements).map(|(x, d)| x + d).collect();
-        if fit.fits.drift(&positions) <= SETTLED {
-            break;
-        }
-        fit.fits.refresh();
-        let state = solution.displacements.clone();
-        let from = Some(WarmStart { state: &state, secant: None });
-        let (mut next, p) = solve_once(c, s, from, observer)?;
-        // The report counts the whole fit: every round's iterations and time.
-        let r = &mut next.report;
-        r.steps += solution.report.steps;
-        r.force_evaluations += solution.report.force_evaluations;
-        r.linear_iterations += solution.report.linear_iterations;
-        r.elapsed += solution.report.elapsed;
-        solution = next;
-        penetration = penetration.max(p);
-    }
-    Ok((solution, penetration))
-}
-
-/// A scan's planes are found again at the converged answer, and the fit solved again from
-/// it, when the patch has moved more than this many plane radii since they were found: the
-/// answer is then (nearly) a fixed point of its own planes, whatever path led to it (a warm
-/// update lands where a cold run does: 0.78 mm apart without, 0.04 with one round).
-const SETTLED: f64 = 0.02;
-/// At most this many times (four rounds tripled the solve for no better answer:
-/// docs/decisions.md).
-const SETTLE_ROUNDS: usize = 1;
-
-/// One solve of [`solve_composed_from`].
-fn solve_once(
-    c: &mut Composed,
-    s: &SolveSettings,
-    warm: Option<WarmStart<'_>>,
-    observer: &mut dyn FnMut(&Progress),
-) -> Result<(Solution, f64), SolveError> {
     let start = warm.map(|w| w.state);
     let scale = solver_scale(c);
     let relative = s.tolerance / scale;

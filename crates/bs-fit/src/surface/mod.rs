@@ -240,26 +240,6 @@ impl SurfaceFit {
         self.anchor.clear();
     }
 
-    /// How far the patch has moved at `positions` since its planes were last found, in
-    /// radii (infinite before they were found).
-    pub fn drift(&self, positions: &[Point3<f64>]) -> f64 {
-        if self.anchor.len() != self.nodes.len() {
-            return f64::INFINITY;
-        }
-        let moved = self
-            .anchor
-            .iter()
-            .zip(&self.nodes)
-            .map(|(x, &a)| (positions[a] - x).norm())
-            .fold(0.0f64, f64::max);
-        moved / self.radius.max(f64::MIN_POSITIVE)
-    }
-
-    /// Forgets where the planes were found: the next linearisation finds them again.
-    pub fn refresh(&mut self) {
-        self.anchor.clear();
-    }
-
     /// The model nodes of the patch.
     pub fn patch_nodes(&self) -> &[usize] {
         &self.nodes

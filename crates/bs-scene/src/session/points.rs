@@ -1,7 +1,11 @@
 //! New scans in a live session: a `[[measurement]]`'s point cloud replaced by a new scan of
-//! the same patch and fitted warm from the last good state. The scan's rigid correction is
-//! the one estimated from the scene's bone points (the navigation's registration does not
-//! change between scans); its data stiffness follows the area the new scan covers.
+//! the same patch and fitted, with the session's preparation (model, contact lists,
+//! preconditioner) reused. The fit starts from the reference state, as a cold run does: a
+//! warm start from the last fit lands elsewhere within the scan planes' refresh
+//! hysteresis (0.78 mm on fixtures/fit) and, at full strength from its first iteration,
+//! can cycle between planes (docs/decisions.md). The scan's rigid correction is the one
+//! estimated from the scene's bone points (the navigation's registration does not change
+//! between scans); its data stiffness follows the area the new scan covers.
 
 use bs_dr::{DataTerm, Progress, Springs};
 use bs_fit::Term;
@@ -25,8 +29,9 @@ impl Session {
     }
 
     /// Replaces the scans of the measurements on the named node sets by `scans` (scene frame
-    /// and units, before the rigid correction) and fits them warm from the last good state.
-    /// On any error the session keeps its last good state and scans.
+    /// and units, before the rigid correction) and fits them from the reference state (see
+    /// the module documentation). On any error the session keeps its last good state and
+    /// scans.
     pub fn update_points(
         &mut self,
         scans: &[(String, Vec<Point3<f64>>)],
@@ -38,9 +43,11 @@ impl Session {
             self.check_scan(k, name, points)?;
             previous.push((k, self.replace_scan(k, points.clone())));
         }
+        let warm = std::mem::replace(&mut self.warm, false);
         match self.solve(observer) {
             Ok(solved) => Ok(solved),
             Err(e) => {
+                self.warm = warm;
                 for (k, points) in previous.into_iter().rev() {
                     self.replace_scan(k, points);
                 }

@@ -1,0 +1,121 @@
+//! `cargo xtask bench fit`: the cost of fitting a scan against imposing the displacement it
+//! measures, in one process on the same brain (fixtures/fit: the MNI152 regions brain,
+//! 69k tetrahedra). Cold: the fit of the fixture's scan (`scene.toml`) against the truth's
+//! craniotomy displacement imposed (`scene-truth.toml`), each solved from the reference
+//! state three times, medians and their ratio. Updates: a live session of each, then four
+//! successive intra-operative changes (the scan, and the imposed craniotomy, 0.5 mm
+//! deeper each time): the imposed one solved warm from the last state, the scan fitted
+//! with the session's preparation from the reference state (bs-scene's `session/points.rs`
+//! says why); medians and their ratio. The table goes into docs/benchmarks.md between its
+//! `fit` markers.
+
+use std::fmt::Write as _;
+use std::time::Instant;
+
+use bs_mesh::{Point3, Vector3};
+use bs_scene::{BoundaryLoad, Prepared, Session};
+
+use crate::util::{replace_block, root};
+
+const REPEATS: usize = 3;
+const UPDATES: usize = 4;
+const STEP_MM: f64 = 0.5;
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+}
+
+fn session(name: &str) -> Result<Session, String> {
+    let path = root().join("fixtures/fit").join(name);
+    let p = Prepared::load(&path).map_err(|e| e.to_string())?;
+    Session::new(p).map_err(|e| e.to_string())
+}
+
+/// A cold solve of `s`'s own loads (from the reference state): seconds and Newton
+/// iterations.
+fn cold(s: &mut Session) -> Result<(f64, f64), String> {
+    s.reset();
+    let t = Instant::now();
+    let r = s.solve(&mut |_| {}).map_err(|e| e.to_string())?;
+    Ok((t.elapsed().as_secs_f64(), r.solution.report.steps as f64))
+}
+
+/// The truth's craniotomy displacements (the imposed scene's file), per node of the set.
+fn truth_craniotomy(s: &Session) -> Result<Vec<Vector3<f64>>, String> {
+    let nodes = s.set_nodes("CRANIOTOMY").map_err(|e| e.to_string())?;
+    let p = &s.run().prepared.prescribed;
+    Ok(nodes.iter().map(|&n| Vector3::from_fn(|c, _| p[n][c].unwrap_or(0.0))).collect())
+}
+
+/// `cargo xtask bench fit`.
+pub fn main() -> Result<(), String> {
+    let mut imposed = session("scene-truth.toml")?;
+    let mut fit = session("scene.toml")?;
+    let (mut ci, mut cf, mut cits) = (Vec::new(), Vec::new(), Vec::new());
+    // Interleaved, so that the machine's load falls on both alike.
+    for _ in 0..REPEATS {
+        ci.push(cold(&mut imposed)?.0);
+        let (t, its) = cold(&mut fit)?;
+        cf.push(t);
+        cits.push(its);
+    }
+    let base = truth_craniotomy(&imposed)?;
+    let scan = bs_mesh::io::points::read_points(&root().join("fixtures/fit/scan.csv"))
+        .map_err(|e| e.to_string())?;
+    let (mut wi, mut wf, mut its) = (Vec::new(), Vec::new(), Vec::new());
+    for k in 1..=UPDATES {
+        let dz = Vector3::new(0.0, 0.0, -STEP_MM * k as f64);
+        let per_node = base.iter().map(|u| u + dz).collect();
+        let t = Instant::now();
+        imposed
+            .update(&[("CRANIOTOMY".into(), BoundaryLoad::PerNode(per_node))], &mut |_| {})
+            .map_err(|e| e.to_string())?;
+        wi.push(t.elapsed().as_secs_f64());
+        let deeper: Vec<Point3<f64>> = scan.iter().map(|p| p + dz).collect();
+        let t = Instant::now();
+        let s = fit
+            .update_points(&[("CRANIOTOMY".into(), deeper)], &mut |p: &bs_scene::Progress| {
+                if std::env::var_os("BS_DEBUG_FIT").is_some() {
+                    eprintln!(
+                        "{} load {:.3} err {:.2e} maxu {:.3}",
+                        p.step, p.load_factor, p.err, p.max_displacement
+                    )
+                }
+            })
+            .map_err(|e| e.to_string())?;
+        wf.push(t.elapsed().as_secs_f64());
+        its.push(s.solution.report.steps as f64);
+    }
+    let (ci, cf, wi, wf) = (median(ci), median(cf), median(wi), median(wf));
+    let mut table = String::from(
+        "| solve | imposed craniotomy (s) | fitted scan (s) | fit / imposed |\n|---|---|---|---|\n",
+    );
+    writeln!(
+        table,
+        "| cold, median of {REPEATS} | {ci:.2} | {cf:.2} ({:.0} Newton iterations) | {:.1}× |",
+        median(cits),
+        cf / ci
+    )
+    .unwrap();
+    writeln!(
+        table,
+        "| session update, {STEP_MM} mm deeper each time, median of {UPDATES} | {wi:.2} (warm) | \
+         {wf:.2} ({:.0} Newton iterations) | {:.1}× |",
+        median(its),
+        wf / wi
+    )
+    .unwrap();
+    writeln!(
+        table,
+        "\nfixtures/fit ({} nodes), {} threads; `cargo xtask bench fit`.",
+        fit.run().prepared.mesh.nodes.len(),
+        rayon::current_num_threads()
+    )
+    .unwrap();
+    print!("{table}");
+    replace_block(&root().join("docs/benchmarks.md"), "fit", &table)?;
+    println!("wrote docs/benchmarks.md (fit)");
+    Ok(())
+}
