@@ -149,13 +149,7 @@ fn control_nodes(
         set: name.to_string(),
         message,
     };
-    let nodes = mesh.node_set(name).ok_or_else(|| {
-        err(format!(
-            "no such node set in {} (it has: {})",
-            scene.mesh.file.display(),
-            names(mesh.node_sets.keys())
-        ))
-    })?;
+    let nodes = measured_set(scene, mesh, name).map_err(err)?;
     if let Some(&n) = nodes.iter().find(|&&n| prescribed[n].iter().any(Option::is_some)) {
         return Err(err(format!(
             "node {} is also held by a [[boundary]]: the landmarks' fit decides the \
@@ -198,6 +192,17 @@ pub(crate) fn control(
     prescribed
 }
 
+/// The nodes of node set `name`, or the message naming the sets the mesh has.
+fn measured_set<'m>(scene: &Scene, mesh: &'m Mesh, name: &str) -> Result<&'m [usize], String> {
+    mesh.node_set(name).ok_or_else(|| {
+        format!(
+            "no such node set in {} (it has: {})",
+            scene.mesh.file.display(),
+            names(mesh.node_sets.keys())
+        )
+    })
+}
+
 /// A point cloud, refused when empty.
 fn read_cloud(sp: &Path, key: &str, file: &Path) -> Result<Vec<Point3<f64>>, SceneError> {
     let err = |message: String| SceneError::Read {
@@ -229,13 +234,7 @@ fn patch_faces(
         set: name.to_string(),
         message,
     };
-    let nodes = mesh.node_set(name).ok_or_else(|| {
-        err(format!(
-            "no such node set in {} (it has: {})",
-            scene.mesh.file.display(),
-            names(mesh.node_sets.keys())
-        ))
-    })?;
+    let nodes = measured_set(scene, mesh, name).map_err(err)?;
     let mut member = vec![false; mesh.nodes.len()];
     for &n in nodes {
         member[n] = true;
