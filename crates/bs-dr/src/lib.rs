@@ -71,6 +71,7 @@
 #![allow(clippy::needless_range_loop)] // index loops mirror the tensor formulas
 
 pub mod assembly;
+pub mod body;
 pub mod contact;
 pub mod data;
 pub mod dr;
@@ -97,6 +98,7 @@ pub use nalgebra;
 pub use assembly::ReferenceWorkspace;
 pub use assembly::StepBound;
 pub use assembly::{Inversion, Workspace};
+pub use body::{BodyError, BodyForce, Buoyancy};
 pub use contact::{Contact, ContactProjection, ContactReport, NoContact, SurfaceFeature};
 pub use data::{DataTerm, NoData, Spring, Springs};
 pub use dr::{DrError, DrInfo, DrParams, DynamicRelaxation};

@@ -1,5 +1,6 @@
-//! Boundary conditions: fixed and prescribed displacement components ("displacement – zero
-//! traction"): every component not constrained here is traction-free.
+//! Boundary conditions: fixed and prescribed displacement components, and dead nodal
+//! forces (a body force's consistent load vector, [`crate::body`]); every component not
+//! constrained here carries only its nodal force.
 
 use bs_mesh::Vector3;
 
@@ -29,14 +30,29 @@ pub enum LoadError {
         /// The value.
         value: f64,
     },
+    /// A nodal force vector of another length than the nodes, or with a non-finite value.
+    #[error(
+        "nodal forces: {got} values (or a non-finite one) for {count} nodes: give one finite \
+         force per node"
+    )]
+    Forces {
+        /// Values given.
+        got: usize,
+        /// Number of nodes.
+        count: usize,
+    },
 }
 
 /// Per-node, per-component displacement constraints. A constrained component follows the
-/// 3-4-5 ramp [`ramp`] from 0 to its final value; "fixed" is a final value of 0.
+/// 3-4-5 ramp [`ramp`] from 0 to its final value; "fixed" is a final value of 0. Dead nodal
+/// forces (constant in direction and size, per unit of the model's force) act on every
+/// node; at a constrained component they go into the reaction.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Loads {
     constrained: Vec<[bool; 3]>,
     value: Vec<Vector3<f64>>,
+    /// Dead nodal forces (empty: none).
+    force: Vec<Vector3<f64>>,
 }
 
 /// Smooth 3-4-5 polynomial ramp `10τ³ − 15τ⁴ + 6τ⁵` for `τ ∈ [0, 1]` (clamped outside):
@@ -52,6 +68,37 @@ impl Loads {
         Loads {
             constrained: vec![[false; 3]; node_count],
             value: vec![Vector3::zeros(); node_count],
+            force: Vec::new(),
+        }
+    }
+
+    /// Sets the dead nodal forces (one per node; replaces any set before).
+    pub fn set_forces(&mut self, forces: Vec<Vector3<f64>>) -> Result<(), LoadError> {
+        let count = self.constrained.len();
+        if forces.len() != count || forces.iter().any(|f| !f.iter().all(|x| x.is_finite())) {
+            return Err(LoadError::Forces { got: forces.len(), count });
+        }
+        self.force =
+            if forces.iter().all(|f| *f == Vector3::zeros()) { Vec::new() } else { forces };
+        Ok(())
+    }
+
+    /// The dead nodal forces (empty without any).
+    pub fn forces(&self) -> &[Vector3<f64>] {
+        &self.force
+    }
+
+    /// Whether any dead nodal force acts.
+    pub fn has_forces(&self) -> bool {
+        !self.force.is_empty()
+    }
+
+    /// `f ← f − factor · f_ext`: the residual convention of
+    /// [`Model::internal_forces_into`](crate::Model::internal_forces_into) (internal minus
+    /// external) with the dead forces at `factor` of their value.
+    pub fn subtract_forces_into(&self, factor: f64, f: &mut [Vector3<f64>]) {
+        if factor != 0.0 {
+            f.iter_mut().zip(&self.force).for_each(|(fi, e)| *fi -= e * factor);
         }
     }
 
@@ -107,12 +154,13 @@ impl Loads {
         Ok(())
     }
 
-    /// The same constraints with every prescribed value multiplied by `factor` (the loads
-    /// at load fraction `factor` of a continuation).
+    /// The same constraints with every prescribed value and nodal force multiplied by
+    /// `factor` (the loads at load fraction `factor` of a continuation).
     pub fn scaled(&self, factor: f64) -> Loads {
         Loads {
             constrained: self.constrained.clone(),
             value: self.value.iter().map(|v| v * factor).collect(),
+            force: self.force.iter().map(|v| v * factor).collect(),
         }
     }
 
@@ -193,5 +241,24 @@ mod tests {
         ));
         l.prescribe(2, 1, -0.5).unwrap();
         assert_eq!((l.max_prescribed(), l.constrained_count()), (0.5, 1));
+        assert_eq!(
+            l.set_forces(vec![Vector3::zeros(); 2]),
+            Err(LoadError::Forces { got: 2, count: 3 })
+        );
+        let nan = vec![Vector3::new(f64::NAN, 0.0, 0.0); 3];
+        assert_eq!(l.set_forces(nan), Err(LoadError::Forces { got: 3, count: 3 }));
+    }
+
+    #[test]
+    fn dead_forces_enter_the_residual_scaled() {
+        let mut l = Loads::new(2);
+        assert!(!l.has_forces());
+        l.set_forces(vec![Vector3::new(0.0, 0.0, -2.0), Vector3::new(1.0, 0.0, 0.0)]).unwrap();
+        let mut f = vec![Vector3::new(0.0, 0.0, 1.0); 2];
+        l.subtract_forces_into(0.5, &mut f);
+        assert_eq!(f, vec![Vector3::new(0.0, 0.0, 2.0), Vector3::new(-0.5, 0.0, 1.0)]);
+        assert_eq!(l.scaled(2.0).forces()[0], Vector3::new(0.0, 0.0, -4.0));
+        l.set_forces(vec![Vector3::zeros(); 2]).unwrap();
+        assert!(!l.has_forces());
     }
 }

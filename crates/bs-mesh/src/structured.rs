@@ -19,28 +19,36 @@ pub fn grid_index(n: usize, i: usize, j: usize, k: usize) -> usize {
 /// The box mesh, hexahedra (`tets == false`) or Kuhn tetrahedra, every element positively
 /// oriented, with no sets.
 pub fn box_mesh(n: usize, size: f64, tets: bool) -> Mesh {
-    let h = size / n as f64;
-    let mut nodes = Vec::with_capacity((n + 1).pow(3));
-    for k in 0..=n {
-        for j in 0..=n {
-            for i in 0..=n {
-                nodes.push(Point3::new(i as f64 * h, j as f64 * h, k as f64 * h));
+    cuboid_mesh([n; 3], [size; 3], tets)
+}
+
+/// [`box_mesh`] with `cells[c]` cells over `[0, size[c]]` along axis `c` (a column, a slab),
+/// nodes numbered x fastest, then y, then z.
+pub fn cuboid_mesh(cells: [usize; 3], size: [f64; 3], tets: bool) -> Mesh {
+    let [nx, ny, nz] = cells;
+    let index = |i: usize, j: usize, k: usize| (k * (ny + 1) + j) * (nx + 1) + i;
+    let h: [f64; 3] = std::array::from_fn(|c| size[c] / cells[c] as f64);
+    let mut nodes = Vec::with_capacity((nx + 1) * (ny + 1) * (nz + 1));
+    for k in 0..=nz {
+        for j in 0..=ny {
+            for i in 0..=nx {
+                nodes.push(Point3::new(i as f64 * h[0], j as f64 * h[1], k as f64 * h[2]));
             }
         }
     }
     let mut elements = Vec::new();
-    for k in 0..n {
-        for j in 0..n {
-            for i in 0..n {
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
                 let v = [
-                    grid_index(n, i, j, k),
-                    grid_index(n, i + 1, j, k),
-                    grid_index(n, i + 1, j + 1, k),
-                    grid_index(n, i, j + 1, k),
-                    grid_index(n, i, j, k + 1),
-                    grid_index(n, i + 1, j, k + 1),
-                    grid_index(n, i + 1, j + 1, k + 1),
-                    grid_index(n, i, j + 1, k + 1),
+                    index(i, j, k),
+                    index(i + 1, j, k),
+                    index(i + 1, j + 1, k),
+                    index(i, j + 1, k),
+                    index(i, j, k + 1),
+                    index(i + 1, j, k + 1),
+                    index(i + 1, j + 1, k + 1),
+                    index(i, j + 1, k + 1),
                 ];
                 if tets {
                     // Six positively oriented tetrahedra around the diagonal 0–6.

@@ -20,7 +20,7 @@ pub const ORDERS: &[(&str, Order)] = &[(
         // Internal forces (slots, deterministic gather, workspace), K₀, element tangents.
         &["assembly"],
         // The model (elements + blocks + slot map) and its masses and critical steps.
-        &["model", "mass"],
+        &["model", "mass", "body"],
         // The solvers, their seams (contact, loads, data) and post-processing.
         &["contact", "data", "loads", "solver", "dr", "newton", "nk", "post"],
     ],

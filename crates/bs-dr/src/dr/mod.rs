@@ -3,7 +3,8 @@
 //! The iteration (Joldes, Wittek & Miller's adaptive DR, a second-order Richardson
 //! iteration with mass-proportional damping), with pseudo time step `h = 1`:
 //!
-//! `u⁺ = u + ρ² (u − u⁻) + ((1+ρ) h / 2)² M⁻¹ (f_ext − f_int(u))`, `f_ext = 0` (zero traction).
+//! `u⁺ = u + ρ² (u − u⁻) + ((1+ρ) h / 2)² M⁻¹ (f_ext − f_int(u))`, `f_ext` the dead nodal
+//! forces of the [`Loads`] (a body force; zero traction elsewhere).
 //!
 //! * Masses are fictitious ([`Model::dr_masses_into`]): element `e` gets the mass that makes
 //!   its own critical step `h / step_fraction`, so every node has the same stable step (from
@@ -18,7 +19,8 @@
 //! * Termination: `err = max|Δu| ρₑ/(1 − ρₑ) < tolerance × load scale` for `consecutive`
 //!   steps in a row, never a fixed step count. `ρₑ` is the more pessimistic of the rate from
 //!   `0.9 ω_min` and the decay rate of `max|Δu|` observed over the last snapshot window.
-//! * Prescribed components follow the 3-4-5 ramp over `ramp_steps` steps, then stay.
+//! * Prescribed components follow the 3-4-5 ramp over `ramp_steps` steps, then stay; so do
+//!   the dead forces from rest (from a start state they act in full from the first step).
 //! * Measurements ([`DataTerm`]) are an external force: the springs of their linearisation,
 //!   ramped in with the prescribed components and linearised again every
 //!   `snapshot_interval` steps; each node's mass also carries its springs' stiffness bound
@@ -261,6 +263,9 @@ impl DynamicRelaxation {
         let mut guard = GrowthGuard::new(p.step_fraction, p.divergence_factor * scale);
         let mut s = State::new(model, start);
         let fitting = data.is_active();
+        // Dead forces ramp in with the prescribed values from rest; a start state was in
+        // balance with them (Newton–Krylov's last converged state, a session's last answer).
+        let from_rest = start.iter().all(|v| *v == Vector3::zeros());
         let (mut maxd, mut below, mut err) = (0.0f64, 0usize, f64::INFINITY);
         for step in 1..=p.max_steps {
             if fitting && (step - 1) % p.snapshot_interval == 0 {
@@ -274,6 +279,8 @@ impl DynamicRelaxation {
                 let pull = ramp(step as f64 / ramp_steps as f64);
                 s.springs.add_forces_into(model.reference(), &s.u, pull, &mut s.f);
             }
+            let weight = if from_rest { ramp(step as f64 / ramp_steps as f64) } else { 1.0 };
+            loads.subtract_forces_into(weight, &mut s.f);
             rayleigh.observe(step - 1, &s.u, &s.f, &setup.masses, &setup.free, maxd);
             let (rho, load) = (rayleigh.rho(), ramp(step as f64 / ramp_steps as f64));
             setup.step(&mut s, rho, load);

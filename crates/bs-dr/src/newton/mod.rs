@@ -43,6 +43,9 @@ struct State {
     ws: Workspace,
     /// Internal-force evaluations so far.
     evaluations: usize,
+    /// The dead nodal forces (empty: none) and the load fraction they act at.
+    dead: Vec<Vector3<f64>>,
+    load_factor: f64,
 }
 
 impl State {
@@ -50,7 +53,14 @@ impl State {
     fn trial_norm(&mut self, model: &Model, sys: &TangentSystem) -> Option<f64> {
         self.evaluations += 1;
         let r = model.internal_forces_into(&self.trial, &mut self.ws, &mut self.forces);
+        self.subtract_dead();
         r.ok().map(|()| sys.residual_norm(&self.forces))
+    }
+
+    /// `forces ← forces − λ f_ext`.
+    fn subtract_dead(&mut self) {
+        let l = self.load_factor;
+        self.forces.iter_mut().zip(&self.dead).for_each(|(f, e)| *f -= e * l);
     }
 
     /// `trial = u` (+ `α δ`) (+ the increment `dp` of the prescribed DOFs).
@@ -139,6 +149,8 @@ impl Newton {
             forces: zero,
             ws: model.workspace(),
             evaluations: 0,
+            dead: loads.forces().to_vec(),
+            load_factor: 0.0,
         };
         let mut dp = vec![0.0; 3 * n];
         let (mut iterations, mut last_err) = (0usize, f64::INFINITY);
@@ -158,6 +170,8 @@ impl Newton {
                 if let Err(inv) = model.internal_forces_into(&s.u, &mut s.ws, &mut s.forces) {
                     return Err(NewtonError::inverted(iterations, inv));
                 }
+                s.load_factor = lf;
+                s.subtract_dead();
                 sys.correction(model, &s.u, &s.forces, inc, (ls, it))?;
                 if !s.line_search(model, &sys, inc, p.line_search) {
                     let (err, steps) = (last_err, iterations);

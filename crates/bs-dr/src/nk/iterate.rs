@@ -83,7 +83,7 @@ impl Iterate {
             it.set_positions(pb);
             data.linearise(&it.positions, &mut it.data);
         }
-        forces(pb.model, &it.data, &it.u, &mut it.ws, &mut it.f, work)
+        forces(pb.model, (&it.data, pb.loads.forces()), &it.u, &mut it.ws, &mut it.f, work)
             .map_err(NewtonKrylovError::inverted)?;
         Ok(it)
     }

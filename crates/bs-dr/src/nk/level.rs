@@ -205,7 +205,7 @@ fn search(
             .par_iter_mut()
             .zip(u.par_iter().zip(direction.par_iter()))
             .for_each(|(t, (a, d))| *t = a + d * alpha);
-        if forces(pb.model, data, trial_u, ws, trial_f, work).is_err() {
+        if forces(pb.model, (data, pb.loads.forces()), trial_u, ws, trial_f, work).is_err() {
             return Ok(None);
         }
         let t = Instant::now();

@@ -21,11 +21,11 @@ use crate::linalg::twolevel::{Constraints, TwoLevel, TwoLevelScratch};
 use crate::model::Model;
 
 /// The forces of the energy the solve minimises at `u`: the internal forces plus the data
-/// springs of the current linearisation (none without measurements), with the count and
-/// time kept.
+/// springs of the current linearisation (none without measurements) minus the dead forces
+/// `dead` (a body force, in full; empty without one), with the count and time kept.
 pub(crate) fn forces(
     model: &Model,
-    data: &Springs,
+    (data, dead): (&Springs, &[Vector3<f64>]),
     u: &[Vector3<f64>],
     ws: &mut Workspace,
     f: &mut [Vector3<f64>],
@@ -36,6 +36,9 @@ pub(crate) fn forces(
     let r = model.internal_forces_into(u, ws, f);
     if r.is_ok() && !data.is_empty() {
         data.add_forces_into(model.reference(), u, 1.0, f);
+    }
+    if r.is_ok() {
+        f.iter_mut().zip(dead).for_each(|(fi, e)| *fi -= e);
     }
     work.time.forces += t.elapsed();
     r
@@ -59,6 +62,8 @@ pub(crate) struct Linearisation<'a> {
     pub model: &'a Model,
     /// The data springs of the iteration (their Jacobian enters through the difference).
     pub data: &'a Springs,
+    /// The dead forces (empty: none).
+    pub dead: &'a [Vector3<f64>],
     pub u: &'a [Vector3<f64>],
     pub f: &'a [Vector3<f64>],
     pub particular: &'a [Vector3<f64>],
@@ -80,7 +85,7 @@ pub(crate) fn solve(
     max_iterations: usize,
     work: &mut Work,
 ) -> Result<GmresInfo, Inversion> {
-    let (model, data, u, f) = (lin.model, lin.data, lin.u, lin.f);
+    let (model, data, u, f) = (lin.model, (lin.data, lin.dead), lin.u, lin.f);
     let pi = &lin.cons.projector;
     // Right-hand side −Π (f + J u_p).
     let pmax = max_abs(lin.particular);

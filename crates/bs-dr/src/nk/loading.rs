@@ -108,6 +108,7 @@ pub(crate) fn direction(
     let lin = Linearisation {
         model: pb.model,
         data: &it.data,
+        dead: pb.loads.forces(),
         u: &it.u,
         f: &it.f,
         particular: &it.particular,
@@ -212,7 +213,16 @@ pub(crate) fn predict(
         it.active = saved;
         return Ok(None);
     }
-    if forces(pb.model, &it.data, &it.trial_u, &mut it.ws, &mut it.trial_f, work).is_err() {
+    if forces(
+        pb.model,
+        (&it.data, pb.loads.forces()),
+        &it.trial_u,
+        &mut it.ws,
+        &mut it.trial_f,
+        work,
+    )
+    .is_err()
+    {
         it.active = saved;
         return Ok(None);
     }

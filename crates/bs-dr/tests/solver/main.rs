@@ -4,6 +4,7 @@
 
 mod common;
 mod contact_seam;
+mod gravity;
 mod guard;
 mod homogeneous;
 mod locking;
