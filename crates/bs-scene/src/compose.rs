@@ -19,8 +19,11 @@ use crate::skull_contact::SkullContact;
 pub struct Composed {
     /// The finite-element model.
     pub model: Model,
-    /// Fixed and prescribed displacements.
+    /// Fixed and prescribed displacements, and the body force's nodal loads.
     pub loads: Loads,
+    /// The nodal loads of the scene's gravity (empty without), kept for the loads of
+    /// updates.
+    pub body: Vec<bs_mesh::Vector3<f64>>,
     /// Slave nodes: boundary nodes of the brain without prescribed components.
     pub slaves: Vec<usize>,
     /// The skull's precomputed surface (for gap checks), if the scene has contact.
@@ -91,7 +94,7 @@ pub fn compose_with(p: &Prepared, opts: &ComposeOptions) -> Result<Composed, Sce
         .iter()
         .map(|r| {
             material(&r.material)
-                .map(|material| Solid { material, density: r.material.density })
+                .map(|material| Solid { material, density: r.material.density_or_default() })
                 .map_err(|e| SceneError::Scene {
                     file: p.path.clone(),
                     message: format!("[[region]] elset '{}': material: {e}", r.elset),
@@ -103,7 +106,8 @@ pub fn compose_with(p: &Prepared, opts: &ComposeOptions) -> Result<Composed, Sce
         SceneError::Mesh { file: p.scene.mesh.file.clone(), count: 1, first: e.to_string() }
     })?;
 
-    let loads = loads_of(p, &p.prescribed)?;
+    let body = crate::gravity::nodal_loads(p, &model)?;
+    let loads = loads_of(p, &p.prescribed, &body)?;
     let fit = crate::measure::terms::compose_fits(p)?;
     let load_scale = scale_of(&model, &loads, fit.as_ref());
 
@@ -143,6 +147,7 @@ pub fn compose_with(p: &Prepared, opts: &ComposeOptions) -> Result<Composed, Sce
     Ok(Composed {
         model,
         loads,
+        body,
         slaves,
         master,
         exact,
@@ -164,9 +169,20 @@ pub fn scale_of(model: &Model, loads: &Loads, fit: Option<&crate::measure::FitSt
 }
 
 /// The solver's loads for the per-node prescribed components `prescribed` of the mesh of
-/// `p` (the scene's own, or those of an update).
-pub fn loads_of(p: &Prepared, prescribed: &Prescribed) -> Result<Loads, SceneError> {
+/// `p` (the scene's own, or those of an update) and the nodal loads `body` of a body force
+/// (empty: none).
+pub fn loads_of(
+    p: &Prepared,
+    prescribed: &Prescribed,
+    body: &[bs_mesh::Vector3<f64>],
+) -> Result<Loads, SceneError> {
     let mut loads = Loads::new(p.mesh.nodes.len());
+    if !body.is_empty() {
+        loads.set_forces(body.to_vec()).map_err(|e| SceneError::Scene {
+            file: p.path.clone(),
+            message: format!("[gravity]: {e}"),
+        })?;
+    }
     for (n, comps) in prescribed.iter().enumerate() {
         for (c, v) in comps.iter().enumerate() {
             let result = match v {

@@ -153,7 +153,7 @@ fn impose(
     for (&n, v) in nodes.iter().zip(b) {
         p.prescribed[n] = [Some(v.x), Some(v.y), Some(v.z)];
     }
-    let loads = loads_of(p, &p.prescribed)?;
+    let loads = loads_of(p, &p.prescribed, &c.body)?;
     c.load_scale = scale_of(&c.model, &loads, c.fit.as_ref());
     c.loads = loads;
     Ok(())

@@ -49,6 +49,7 @@ pub mod compose;
 mod error;
 pub mod findings;
 pub mod gap;
+pub mod gravity;
 mod imposed;
 pub mod inverse;
 mod loads;

@@ -132,20 +132,26 @@ impl Prepared {
         let mut load_notes = load_notes;
         load_notes.extend(measurements.iter().map(crate::measure::Measured::note));
         let n_constrained = prescribed.iter().filter(|p| p.iter().any(Option::is_some)).count();
+        let weighs = scene.gravity.as_ref().is_some_and(|g| g.acceleration > 0.0);
         if n_constrained == 0 && skull.is_none() && measurements.is_empty() {
             return Err(SceneError::Unsupported {
                 scene: sp,
                 message: "nothing to compute: no node has a prescribed or fixed displacement \
-                          and there is no skull; add a [[boundary]] that moves nodes"
+                          and there is no skull; add a [[boundary]] that moves nodes (or, with \
+                          [gravity], one that holds the brain)"
                     .into(),
             });
         }
-        if measurements.is_empty() && !prescribed.iter().flatten().flatten().any(|v| *v != 0.0) {
+        if measurements.is_empty()
+            && !weighs
+            && !prescribed.iter().flatten().flatten().any(|v| *v != 0.0)
+        {
             return Err(SceneError::Unsupported {
                 scene: sp,
                 message: "nothing to compute: no boundary condition moves a node (every \
-                          prescribed displacement is zero), so the brain does not deform; \
-                          add a [[boundary]] with a non-zero displacement"
+                          prescribed displacement is zero) and there is no [gravity], so the \
+                          brain does not deform; add a [[boundary]] with a non-zero \
+                          displacement or a [gravity] table"
                     .into(),
             });
         }

@@ -162,13 +162,92 @@ pub struct Material {
     pub bulk_modulus: Option<f64>,
     /// Ogden exponent α (Ogden only).
     pub alpha: Option<f64>,
-    /// Mass density [kg/m³]; default 1000.
-    #[serde(default = "default_density")]
-    pub density: f64,
+    /// Mass density [kg/m³]: the weight under `[gravity]` (required there); without gravity
+    /// only Dynamic Relaxation's masses use it (default 1000).
+    pub density: Option<f64>,
 }
 
-fn default_density() -> f64 {
-    1000.0
+/// The density Dynamic Relaxation's masses use when a scene without gravity gives none
+/// (kg/m³; the masses are fictitious, so any positive value serves).
+pub const DEFAULT_DENSITY: f64 = 1000.0;
+
+impl Material {
+    /// The density given, or [`DEFAULT_DENSITY`].
+    pub fn density_or_default(&self) -> f64 {
+        self.density.unwrap_or(DEFAULT_DENSITY)
+    }
+}
+
+/// Standard gravity (m/s²), the default of `[gravity] acceleration`.
+pub const STANDARD_GRAVITY: f64 = 9.81;
+
+/// The `[gravity]` table: the tissue's weight, and the cerebrospinal fluid that buoys it
+/// where it has not drained.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Gravity {
+    /// Gravity's direction in the scene's frame (any length but zero): a supine patient's
+    /// in RAS is `[0, -1, 0]` (posterior).
+    pub direction: [f64; 3],
+    /// Acceleration [m/s²]; default 9.81.
+    #[serde(default = "standard_gravity")]
+    pub acceleration: f64,
+    /// The fluid below a level: there the tissue weighs `(ρ − ρ_fluid) g`, above it `ρ g`.
+    pub fluid: Option<Fluid>,
+}
+
+fn standard_gravity() -> f64 {
+    STANDARD_GRAVITY
+}
+
+/// A fluid filling the space below a level (cerebrospinal fluid drained above it).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Fluid {
+    /// Density [kg/m³] (cerebrospinal fluid: 1007).
+    pub density: f64,
+    /// A point of the fluid's surface (the plane through it normal to gravity), scene frame
+    /// and units.
+    pub level: [f64; 3],
+}
+
+impl Gravity {
+    /// The unit direction (`None` for a zero or non-finite one).
+    pub fn unit(&self) -> Option<[f64; 3]> {
+        let [x, y, z] = self.direction;
+        let n = (x * x + y * y + z * z).sqrt();
+        (n > 0.0 && n.is_finite()).then(|| self.direction.map(|c| c / n))
+    }
+
+    /// Checks what the types cannot.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.unit().is_none() {
+            return Err(format!(
+                "[gravity] direction {:?} has no direction: give a non-zero vector in the scene's \
+                 frame (a supine patient in RAS: [0, -1, 0])",
+                self.direction
+            ));
+        }
+        if !(self.acceleration >= 0.0 && self.acceleration.is_finite()) {
+            return Err(format!(
+                "[gravity] acceleration must be finite and ≥ 0 (m/s², default 9.81), got {}",
+                self.acceleration
+            ));
+        }
+        if let Some(f) = &self.fluid {
+            if !(f.density > 0.0 && f.density.is_finite()) {
+                return Err(format!(
+                    "[gravity] fluid.density must be positive (kg/m³; cerebrospinal fluid 1007), \
+                     got {}",
+                    f.density
+                ));
+            }
+            if !f.level.iter().all(|c| c.is_finite()) {
+                return Err("[gravity] fluid.level must be a finite point [x, y, z]".into());
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Shear and bulk moduli resolved from a [`Material`].
@@ -570,6 +649,8 @@ pub struct Scene {
     /// Extra outputs.
     #[serde(default)]
     pub output: OutputSection,
+    /// Gravity (and the fluid that buoys the brain below its level); none: no body force.
+    pub gravity: Option<Gravity>,
 }
 
 impl Scene {
@@ -629,10 +710,21 @@ impl Scene {
             m.moduli().map_err(|e| {
                 format!("[[region]] #{} (elset '{}'), material: {e}", i + 1, r.elset)
             })?;
-            if !(m.density > 0.0 && m.density.is_finite()) {
+            if let Some(d) = m.density
+                && !(d > 0.0 && d.is_finite())
+            {
                 return Err(format!(
-                    "[[region]] #{} material.density must be positive (kg/m³)",
-                    i + 1
+                    "[[region]] #{} (elset '{}') material.density must be positive (kg/m³), got {d}",
+                    i + 1,
+                    r.elset
+                ));
+            }
+            if scene.gravity.is_some() && m.density.is_none() {
+                return Err(format!(
+                    "[[region]] #{} (elset '{}'): [gravity] weighs each region by its density: \
+                     give material.density (kg/m³; brain tissue about 1040)",
+                    i + 1,
+                    r.elset
                 ));
             }
             match (m.model, m.alpha) {
@@ -733,6 +825,9 @@ impl Scene {
         for (i, m) in scene.measurements.iter().enumerate() {
             m.validate().map_err(|e| format!("[[measurement]] #{}: {e}", i + 1))?;
         }
+        if let Some(g) = &scene.gravity {
+            g.validate()?;
+        }
         if !(scene.solver.tolerance > 0.0 && scene.solver.tolerance.is_finite()) {
             return Err(format!(
                 "[solver] tolerance must be positive (mesh length units), got {}",
@@ -832,7 +927,7 @@ tolerance = 1e-3
         .unwrap();
         assert_eq!(s.solver, Solver::default());
         assert_eq!(s.contact, None);
-        assert_eq!(s.regions[0].material.density, 1000.0);
+        assert_eq!(s.regions[0].material.density, Some(1000.0));
         assert_eq!(s.units, Units::M);
     }
 }

@@ -134,10 +134,15 @@ pub fn verify(
     // state, and a result within the tolerance of it is that answer; its residual relative
     // to reactions of rounding size would be rounding over rounding.
     let largest = u.iter().map(|v| v.amax()).fold(0.0, f64::max);
-    if c.loads.max_prescribed() == 0.0 && largest <= tol {
+    if c.loads.max_prescribed() == 0.0 && !c.loads.has_forces() && largest <= tol {
         equilibrium_residual = 0.0;
     }
-    let equilibrium_bound = equilibrium_bound(tol, c.load_scale);
+    // A body force's displacements are not known before the solve (the load scale is then
+    // the mesh's diagonal): the answer's own largest displacement is the `u_max` of the
+    // bound's reasoning.
+    let scale =
+        if c.loads.has_forces() { c.load_scale.min(largest.max(tol)) } else { c.load_scale };
+    let equilibrium_bound = equilibrium_bound(tol, scale);
     if equilibrium_residual.is_nan() || equilibrium_residual > equilibrium_bound {
         return Err(VerifyError::Equilibrium {
             node_id: p.mesh.node_ids[node],
@@ -181,6 +186,11 @@ fn out_of_balance(c: &Composed, u: &[Vector3<f64>], in_contact: &[f64]) -> (f64,
             reaction = reaction.max(di.norm());
             *fi += di;
         }
+    }
+    // So is a body force: its nodal loads enter the balance, the largest as a reaction.
+    for (fi, e) in f.iter_mut().zip(c.loads.forces()) {
+        reaction = reaction.max(e.norm());
+        *fi -= e;
     }
     let mut worst = (0.0f64, 0usize);
     for (n, fi) in f.iter().enumerate() {

@@ -229,7 +229,7 @@ impl Session {
                     .into(),
             });
         }
-        let loads = loads_of(p, &prescribed)?;
+        let loads = loads_of(p, &prescribed, &self.run.composed.body)?;
         let c = &mut self.run.composed;
         c.load_scale = crate::compose::scale_of(&c.model, &loads, c.fit.as_ref());
         c.loads = loads;
