@@ -105,8 +105,8 @@ impl Model {
 }
 
 /// `∫ N_a dV / V` over the part of a tetrahedron where the signed depth (an affine function
-/// with vertex values `h`) is positive.
-pub(crate) fn submerged_tet(h: [f64; 4]) -> [f64; 4] {
+/// with vertex values `h`) is positive; their sum is the submerged volume fraction.
+pub fn submerged_tet(h: [f64; 4]) -> [f64; 4] {
     let wet: Vec<usize> = (0..4).filter(|&i| h[i] > 0.0).collect();
     match wet.len() {
         0 => [0.0; 4],

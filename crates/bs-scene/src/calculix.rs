@@ -59,7 +59,7 @@ impl Deck {
             return Err("CalculiX references are written for tetrahedral meshes (C3D4)".into());
         }
         for (r, region) in p.scene.regions.iter().enumerate() {
-            material_card(r, region, 1.0)?;
+            material_card(r, region, 1.0, false)?;
         }
         let composed = crate::compose::compose(p).map_err(|e| e.to_string())?;
         // Stresses in N per length unit squared: Pa × (metres per unit)².
@@ -146,7 +146,8 @@ impl Deck {
         );
         c.push_str("*INCLUDE, INPUT=brain.inp\n*INCLUDE, INPUT=skull.inp\n");
         for (r, region) in p.scene.regions.iter().enumerate() {
-            let _ = writeln!(c, "{}", material_card(r, region, stress)?);
+            let weighed = p.scene.gravity.is_some();
+            let _ = writeln!(c, "{}", material_card(r, region, stress, weighed)?);
         }
         // The wedges are fixed: their material only has to make a valid section.
         c.push_str(
@@ -184,6 +185,9 @@ impl Deck {
                 }
             }
         }
+        if let Some(g) = &p.scene.gravity {
+            gravity_cards(&mut c, p, g)?;
+        }
         c.push_str("*NODE PRINT, NSET=NBRAIN\nU\n*END STEP\n");
         Ok(Deck { control: c, brain, skull: sk })
     }
@@ -209,7 +213,12 @@ impl Deck {
 ///   Piola–Kirchhoff stress to the Green–Lagrange strain, i.e. St Venant–Kirchhoff (checked on
 ///   one confined C3D8 with ccx 2.20: σ₃₃ = (λ + 2μ) λ₃(λ₃² − 1)/2 to its 7 printed digits);
 /// * anything else (`ogden`) is refused, naming the region and the models that can be written.
-fn material_card(r: usize, region: &crate::scene::Region, stress: f64) -> Result<String, String> {
+fn material_card(
+    r: usize,
+    region: &crate::scene::Region,
+    stress: f64,
+    weighed: bool,
+) -> Result<String, String> {
     let m = region.material.moduli()?;
     let (mu, kappa) = (m.mu * stress, m.kappa * stress);
     let law = match region.material.model {
@@ -231,7 +240,45 @@ fn material_card(r: usize, region: &crate::scene::Region, stress: f64) -> Result
             ));
         }
     };
-    Ok(format!("*MATERIAL, NAME=M{r}\n{law}\n*SOLID SECTION, ELSET=REGION{r}, MATERIAL=M{r}"))
+    // The density as given (kg/m³): with `*DLOAD GRAV` only the product ρ g enters a
+    // static step, and `gravity_cards` scales g to make it N per length unit cubed.
+    let density = match region.material.density {
+        Some(d) if weighed => format!("\n*DENSITY\n{d:.12e}"),
+        _ => String::new(),
+    };
+    Ok(format!(
+        "*MATERIAL, NAME=M{r}\n{law}{density}\n*SOLID SECTION, ELSET=REGION{r}, MATERIAL=M{r}"
+    ))
+}
+
+/// The `*DLOAD` cards of the scene's gravity, ramped with the step: `GRAV` of magnitude
+/// `a × (metres per unit)³` (so that the card's density in kg/m³ times it is the weight in
+/// N per length unit cubed) on each region's set; with a fluid, one card per element whose
+/// magnitude carries the buoyancy, `a (ρ − φ ρ_f)/ρ` with `φ` the element's submerged volume
+/// fraction (exact for elements wholly above or below the level; an element the level cuts
+/// gets its share spread as its own weight is, where brainshift integrates the cut exactly).
+fn gravity_cards(c: &mut String, p: &Prepared, g: &crate::scene::Gravity) -> Result<(), String> {
+    let unit = g.unit().ok_or("[gravity] direction is zero")?;
+    let scale = g.acceleration * p.scene.units.metres().powi(3);
+    let [nx, ny, nz] = unit;
+    c.push_str("*DLOAD\n");
+    let Some(f) = &g.fluid else {
+        for r in 0..p.scene.regions.len() {
+            let _ = writeln!(c, "REGION{r}, GRAV, {scale:.12e}, {nx:.12e}, {ny:.12e}, {nz:.12e}");
+        }
+        return Ok(());
+    };
+    let level = Point3::from(f.level);
+    let down = Vector3::from(unit);
+    for (e, el) in p.mesh.elements.iter().enumerate() {
+        let rho = p.scene.regions[p.region_of_element[e]].material.density_or_default();
+        let n = el.nodes();
+        let h: [f64; 4] = std::array::from_fn(|a| down.dot(&(p.mesh.nodes[n[a]] - level)));
+        let wet: f64 = bs_dr::body::submerged_tet(h).iter().sum();
+        let m = scale * (rho - wet * f.density) / rho;
+        let _ = writeln!(c, "{}, GRAV, {m:.12e}, {nx:.12e}, {ny:.12e}, {nz:.12e}", p.mesh.element_ids[e]);
+    }
+    Ok(())
 }
 
 fn write_ids(out: &mut String, ids: impl Iterator<Item = u64>) {
