@@ -107,6 +107,33 @@ pub const CASES: &[Case] = &[
         contact: false,
         sliding: Sliding::Finite,
     },
+    // Gravity (issue 48): the coarse ellipsoid at full weight hanging from its bottom cap
+    // onto the skull, and the regions case supine with the fluid drained above the
+    // craniotomy, with and without the skull (DLOAD GRAV).
+    Case {
+        name: "ellipsoid",
+        scene: "scene-gravity.toml",
+        stem: "ccx-gravity",
+        slopes: &[1.0, 10.0],
+        contact: true,
+        sliding: Sliding::Finite,
+    },
+    Case {
+        name: "mni152-regions",
+        scene: "scene-gravity.toml",
+        stem: "ccx-gravity-nocontact",
+        slopes: &[0.0],
+        contact: false,
+        sliding: Sliding::Finite,
+    },
+    Case {
+        name: "mni152-regions",
+        scene: "scene-gravity.toml",
+        stem: "ccx-gravity",
+        slopes: &[10.0],
+        contact: true,
+        sliding: Sliding::Small { increment: 0.0125 },
+    },
     Case {
         name: "ellipsoid",
         scene: "scene-40mm.toml",

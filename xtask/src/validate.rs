@@ -215,8 +215,8 @@ fn gravity_column(add: &mut dyn FnMut(Row), scope: Scope) -> Result<(), String> 
                 let mut scene = base.clone();
                 scene.mesh.file = path.with_file_name(format!("column-{file}-{layers}.inp"));
                 scene.mesh.element = Some(element);
-                if !submerged {
-                    scene.gravity.as_mut().map(|g| g.fluid = None);
+                if !submerged && let Some(g) = scene.gravity.as_mut() {
+                    g.fluid = None;
                 }
                 let p = Prepared::from_scene(&path, scene).map_err(|e| e.to_string())?;
                 let z: Vec<f64> = p.mesh.nodes.iter().map(|x| x.z).collect();

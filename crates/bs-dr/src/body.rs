@@ -67,7 +67,7 @@ impl BodyForce {
             if !(finite(&b.per_volume) && b.level.iter().all(|x| x.is_finite())) {
                 return Err(BodyError::Invalid("the fluid's force or level is not finite"));
             }
-            if !((b.down.norm() - 1.0).abs() < 1e-9) {
+            if (b.down.norm() - 1.0).abs().is_nan() || (b.down.norm() - 1.0).abs() >= 1e-9 {
                 return Err(BodyError::Invalid("the fluid plane's normal must be a unit vector"));
             }
         }

@@ -67,7 +67,7 @@ pub fn confined_stretch(material: &Material, p: f64) -> Option<f64> {
             return None;
         }
     }
-    if !(pk1(lo) <= p) {
+    if pk1(lo).is_nan() || pk1(lo) > p {
         return None;
     }
     for _ in 0..200 {

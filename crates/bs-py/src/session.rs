@@ -187,9 +187,12 @@ impl Session {
     /// scan of the `[[measurement]]` on that node set, fitted from the reference state with
     /// the session's preparation (scene frame and units, before the scene's rigid
     /// correction; `measured_sets()` lists the keys); not in the same call as boundary
-    /// values. On an error the session stays at its last good state.
+    /// values. `gravity=[x, y, z]`: the scene's `[gravity]` turned to this direction (scene
+    /// frame; the head repositioned), alone or with any of the above. On an error the
+    /// session stays at its last good state (and direction).
     /// `progress`: called with a dict per solver iteration, as in `Scene.run`.
-    #[pyo3(signature = (displacements=None, surface=None, landmarks=None, points=None, progress=None))]
+    #[pyo3(signature = (displacements=None, surface=None, landmarks=None, points=None, gravity=None, progress=None))]
+    #[allow(clippy::too_many_arguments)]
     fn update(
         &self,
         py: Python<'_>,
@@ -197,6 +200,7 @@ impl Session {
         surface: Option<&Bound<'_, PyDict>>,
         landmarks: Option<&Bound<'_, PyDict>>,
         points: Option<&Bound<'_, PyDict>>,
+        gravity: Option<[f64; 3]>,
         progress: Option<Py<PyAny>>,
     ) -> PyResult<RunResult> {
         let loads = self.loads(py, displacements, surface, landmarks)?;
@@ -214,13 +218,18 @@ impl Session {
                 let threads = rayon::current_num_threads();
                 let mut s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
                 let mut observe = observer(progress.as_ref(), &mut callback_error);
+                let turned = gravity.map(|g| s.set_gravity(g)).transpose()?;
                 let solved = if !scans.is_empty() {
                     s.update_points(&scans, &mut observe)
                 } else if loads.is_empty() {
                     s.solve(&mut observe)
                 } else {
                     s.update(&loads, &mut observe)
-                }?;
+                };
+                if let (Err(_), Some(previous)) = (&solved, turned) {
+                    s.set_gravity(previous).expect("the previous direction was accepted");
+                }
+                let solved = solved?;
                 let ctx = RunContext { total_seconds: started.elapsed().as_secs_f64(), threads };
                 Ok::<_, SceneError>(RunResult::new(s.run(), solved, ctx))
             })
@@ -244,6 +253,12 @@ impl Session {
         let nodes = s.set_nodes(name).map_err(|e| scene_err(py, e))?;
         let ids = &s.run().prepared.mesh.node_ids;
         Ok(nodes.into_iter().map(|n| ids[n]).collect())
+    }
+
+    /// The direction of the scene's gravity now (`None` without `[gravity]`).
+    fn gravity(&self) -> Option<[f64; 3]> {
+        let s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        s.gravity_direction()
     }
 
     /// The node sets of the scene's scanned-surface measurements: the keys of `update`'s

@@ -323,6 +323,8 @@ def test_refused_measurements_are_answered_and_the_session_keeps_its_state(serve
         (pyigtl.StringMessage("node_id,ux,uy,uz\n1,0,0,x\n", device_name="Displacements"), "line 2"),
         (pyigtl.TransformMessage(np.eye(4), device_name="Tool"), "not a measurement"),
         (pyigtl.PointMessage([[0, 0, 0]] * 3, device_name="IntraopPoints"), "no [[measurement]]"),
+        (pyigtl.StringMessage("0,0,0", device_name="Gravity"), "not a direction"),
+        (pyigtl.StringMessage("0,-1,0", device_name="Gravity"), "no [gravity] to turn"),
     ]
     for message, text in bad:
         c.send_message(message, wait=True)

@@ -113,3 +113,28 @@ def test_a_new_scan_is_fitted_warm(fixtures):
         session.update(points={"CRANIOTOMY": scan * 1e-3})
     with pytest.raises(ValueError, match="not both"):
         session.update(points={"CRANIOTOMY": scan}, displacements={"FIXED": [0.0, 0.0, 0.0]})
+
+
+def test_gravity_turned_in_a_session_agrees_with_the_cli_run_of_that_direction(fixtures, cli, tmp_path):
+    """fixtures/column (a confined column under its weight, its lower half in fluid): the
+    weight turned upwards (the column hangs from its base) in the session, against a cold
+    `brainshift run` of the scene with that direction (both at the scene's 1e-6 mm
+    tolerance; asserted at 1e-5 mm)."""
+    scene = fixtures / "column" / "scene.toml"
+    session = Session(Scene.from_toml(scene))
+    assert session.gravity() == (0.0, 0.0, -1.0)
+    down = session.update()
+    assert down.displacements[:, 2].min() < -2.0  # it settles
+    up = session.update(gravity=[0.0, 0.0, 2.0])
+    text = scene.read_text().replace("direction = [0.0, 0.0, -1.0]", "direction = [0.0, 0.0, 1.0]")
+    text = text.replace('"column-h8-16.inp"', f'"{fixtures / "column" / "column-h8-16.inp"}"')
+    (tmp_path / "up.toml").write_text(text)
+    u_cli = cli_displacements(cli, tmp_path / "up.toml", tmp_path / "up")
+    assert up.displacements[:, 2].max() > 2.0  # now stretched
+    assert np.abs(up.displacements - u_cli).max() < 1e-5
+    assert session.gravity() == (0.0, 0.0, 2.0)
+    with pytest.raises(BrainshiftError, match="non-zero"):
+        session.update(gravity=[0.0, 0.0, 0.0])
+    assert session.gravity() == (0.0, 0.0, 2.0)
+    with pytest.raises(BrainshiftError, match="no \\[gravity\\] to turn"):
+        Session(Scene.from_toml(fixtures / CUBE)).update(gravity=[0.0, 0.0, -1.0])

@@ -276,7 +276,11 @@ fn gravity_cards(c: &mut String, p: &Prepared, g: &crate::scene::Gravity) -> Res
         let h: [f64; 4] = std::array::from_fn(|a| down.dot(&(p.mesh.nodes[n[a]] - level)));
         let wet: f64 = bs_dr::body::submerged_tet(h).iter().sum();
         let m = scale * (rho - wet * f.density) / rho;
-        let _ = writeln!(c, "{}, GRAV, {m:.12e}, {nx:.12e}, {ny:.12e}, {nz:.12e}", p.mesh.element_ids[e]);
+        let _ = writeln!(
+            c,
+            "{}, GRAV, {m:.12e}, {nx:.12e}, {ny:.12e}, {nz:.12e}",
+            p.mesh.element_ids[e]
+        );
     }
     Ok(())
 }

@@ -927,7 +927,8 @@ tolerance = 1e-3
         .unwrap();
         assert_eq!(s.solver, Solver::default());
         assert_eq!(s.contact, None);
-        assert_eq!(s.regions[0].material.density, Some(1000.0));
+        assert_eq!(s.regions[0].material.density, None);
+        assert_eq!(s.regions[0].material.density_or_default(), DEFAULT_DENSITY);
         assert_eq!(s.units, Units::M);
     }
 }

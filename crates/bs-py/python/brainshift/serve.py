@@ -23,6 +23,8 @@ and unit):
   the pre-operative list is kept for later intra-operative ones;
 * STRING ``Displacements``: CSV ``node_id,ux,uy,uz`` with a header line, one row per node
   of the set, in the scene's frame and unit, as ``displacement_file``;
+* STRING ``Gravity``: ``x,y,z``, gravity's new direction in RAS (the head repositioned);
+  the scene's ``[gravity]`` is turned and the brain solved again;
 * POINT or POLYDATA ``IntraopPoints``: a new scan (its points; triangles, if any, ignored)
   of the scene's ``[[measurement]]`` with points, *fitted* as that measurement is
   (docs/fit.md); the Report's ``measurements`` say how (inliers, residual RMS and max). A
@@ -154,9 +156,17 @@ class Brainshift:
                 points, _ = igtl.unpack_polydata(h, body, triangles=False)
             self.log(f"  {h}: {len(points)} scanned points for {self.measured[0]}")
             return {"points": {self.measured[0]: self.frame.to_scene(points)}}
+        if key == ("STRING", "Gravity"):
+            m = igtl.unpack_with(pyigtl.StringMessage, h, body)
+            direction = gravity_of(m.string, h)
+            if self.session.gravity() is None:
+                raise igtl.MessageError(f"{h}: the scene has no [gravity] to turn")
+            self.log(f"  {h}: gravity turned to RAS ({', '.join(f'{c:g}' for c in direction)})")
+            return {"gravity": list(direction * self.frame.flip)}
         if self.set_name is None:
             raise igtl.MessageError(
-                f"{h}: the scene prescribes no node set to move; it takes POINT or POLYDATA 'IntraopPoints'"
+                f"{h}: the scene prescribes no node set to move; it takes POINT or POLYDATA "
+                "'IntraopPoints' (or STRING 'Gravity')"
             )
         if key == ("POLYDATA", "IntraopSurface"):
             points, tris = igtl.unpack_polydata(h, body)
@@ -183,8 +193,8 @@ class Brainshift:
             return {"displacements": {self.set_name: d}}
         raise igtl.MessageError(
             f"{h}: not a measurement this server takes; it takes POLYDATA 'IntraopSurface', "
-            "POINT 'PreopLandmarks' + 'IntraopLandmarks', STRING 'Displacements', or POINT/POLYDATA "
-            "'IntraopPoints' (a scan to fit)"
+            "POINT 'PreopLandmarks' + 'IntraopLandmarks', STRING 'Displacements', POINT/POLYDATA "
+            "'IntraopPoints' (a scan to fit), or STRING 'Gravity' (x,y,z in RAS)"
         )
 
     def _progress(self, p: dict) -> None:
@@ -235,6 +245,20 @@ class Brainshift:
                 )
 
         return replies()
+
+
+def gravity_of(text: str, h) -> np.ndarray:
+    """Gravity's direction from ``x,y,z`` (RAS; any length but zero)."""
+    try:
+        d = np.array([float(c) for c in text.replace(" ", "").split(",")])
+    except ValueError:
+        d = np.array([])
+    if d.shape != (3,) or not np.all(np.isfinite(d)) or not np.any(d != 0.0):
+        raise igtl.MessageError(
+            f"{h}: {text!r} is not a direction: send three numbers x,y,z in RAS, not all zero "
+            "(a supine patient: 0,-1,0)"
+        )
+    return d
 
 
 def pair_landmarks(pre, pre_names, intra, names, h):

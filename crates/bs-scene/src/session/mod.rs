@@ -22,6 +22,7 @@ use crate::scene::{Boundary, Displacement, Scene};
 use crate::solve::solve_composed_from;
 use crate::verify::verify;
 
+mod gravity;
 mod history;
 mod points;
 
