@@ -106,7 +106,7 @@ pub fn compose_with(p: &Prepared, opts: &ComposeOptions) -> Result<Composed, Sce
         SceneError::Mesh { file: p.scene.mesh.file.clone(), count: 1, first: e.to_string() }
     })?;
 
-    let body = crate::gravity::nodal_loads(p, &model)?;
+    let body = dead_loads(p, &model, p.scene.gravity.as_ref())?;
     let loads = loads_of(p, &p.prescribed, &body)?;
     let fit = crate::measure::terms::compose_fits(p)?;
     let load_scale = scale_of(&model, &loads, fit.as_ref());
@@ -166,6 +166,26 @@ pub fn scale_of(model: &Model, loads: &Loads, fit: Option<&crate::measure::FitSt
         Some(f) if loads.max_prescribed() == 0.0 && f.reach > 0.0 => f.reach,
         _ => bs_dr::load_scale(model, loads),
     }
+}
+
+/// The dead nodal loads of `p` on `model`: `gravity`'s weight (the scene's, or a session's
+/// turned one) and the resected cavities' pressures (empty: none).
+pub fn dead_loads(
+    p: &Prepared,
+    model: &Model,
+    gravity: Option<&crate::scene::Gravity>,
+) -> Result<Vec<bs_mesh::Vector3<f64>>, SceneError> {
+    let mut f = match gravity {
+        Some(g) => crate::gravity::nodal_loads_with(p, model, g)?,
+        None => Vec::new(),
+    };
+    if let Some(r) = &p.resection
+        && r.walls.iter().any(|w| w.1 != 0.0)
+    {
+        f.resize(p.mesh.nodes.len(), bs_mesh::Vector3::zeros());
+        r.add_pressure_loads(&p.mesh, &mut f);
+    }
+    Ok(f)
 }
 
 /// The solver's loads for the per-node prescribed components `prescribed` of the mesh of

@@ -62,6 +62,7 @@ pub mod planes;
 pub mod prepare;
 pub mod region_effect;
 pub mod registration;
+pub mod resection;
 pub mod run;
 pub mod scene;
 pub mod session;

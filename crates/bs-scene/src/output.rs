@@ -107,6 +107,26 @@ pub struct RunReport {
     /// Per `[[measurement]]`: what the fit did (points, inliers, residuals after the fit,
     /// the rigid correction, how far the data moved the model). Empty without measurements.
     pub measurements: Vec<crate::measure::MeasurementReport>,
+    /// Gravity's direction in the scene's frame (absent without `[gravity]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gravity: Option<[f64; 3]>,
+    /// What a resection removed (absent without one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub resected: Option<ResectedReport>,
+}
+
+/// The report's account of a resection.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ResectedReport {
+    /// The resected regions' element sets.
+    pub regions: Vec<String>,
+    /// Elements removed.
+    pub elements: usize,
+    /// Nodes left without an element, held where they were (in result.vtu, in no cell, with
+    /// zero displacement).
+    pub nodes_held: usize,
+    /// Cavity wall triangles (free surfaces now).
+    pub wall_triangles: usize,
 }
 
 /// Where the files of a run went.
@@ -181,6 +201,13 @@ pub fn report(run: &Run, s: &Solved, ctx: RunContext) -> RunReport {
         units: p.scene.units.symbol(),
         space: p.scene.space.space().name(),
         measurements: s.measurements.clone(),
+        gravity: p.scene.gravity.as_ref().map(|g| g.direction),
+        resected: p.resection.as_ref().map(|r| ResectedReport {
+            regions: r.regions.clone(),
+            elements: r.elements,
+            nodes_held: r.orphans.len(),
+            wall_triangles: r.walls.len(),
+        }),
     }
 }
 

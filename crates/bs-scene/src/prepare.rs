@@ -34,6 +34,8 @@ pub struct Prepared {
     pub loads: Vec<String>,
     /// The `[[measurement]]` tables with their files read (fitted, not imposed).
     pub measurements: Vec<crate::measure::Measured>,
+    /// What the resected regions removed (their elements are not in `mesh`).
+    pub resection: Option<crate::resection::Resection>,
 }
 
 impl Prepared {
@@ -86,14 +88,16 @@ impl Prepared {
         let mut warnings = Vec::new();
         if !report.unused_node_ids.is_empty() {
             warnings.push(format!(
-                "{} nodes belong to no element and are ignored (e.g. node {})",
+                "{} nodes belong to no element and are held where they are (e.g. node {})",
                 report.unused_node_ids.len(),
                 report.unused_node_ids[0]
             ));
         }
         let element = element_of(&sp, &scene, &mesh)?;
-        let region_of_element = regions(&sp, &scene, &mesh)?;
+        let mut region_of_element = regions(&sp, &scene, &mesh)?;
         output_surfaces(&sp, &scene, &mesh)?;
+        let mut mesh = mesh;
+        let resection = crate::resection::apply(&sp, &scene, &mut mesh, &mut region_of_element)?;
         let (prescribed, load_notes) = resolve_boundaries_with_notes(&sp, &scene, &mesh)?;
         let skull = match (&scene.contact, skull) {
             (None, None) => None,
@@ -132,7 +136,8 @@ impl Prepared {
         let mut load_notes = load_notes;
         load_notes.extend(measurements.iter().map(crate::measure::Measured::note));
         let n_constrained = prescribed.iter().filter(|p| p.iter().any(Option::is_some)).count();
-        let weighs = scene.gravity.as_ref().is_some_and(|g| g.acceleration > 0.0);
+        let weighs = scene.gravity.as_ref().is_some_and(|g| g.acceleration > 0.0)
+            || scene.regions.iter().any(|r| r.resected && r.cavity_pressure.unwrap_or(0.0) > 0.0);
         if n_constrained == 0 && skull.is_none() && measurements.is_empty() {
             return Err(SceneError::Unsupported {
                 scene: sp,
@@ -174,6 +179,11 @@ impl Prepared {
                     .into(),
             );
         }
+        let mut prescribed = prescribed;
+        crate::resection::hold_unused(&mesh, &mut prescribed);
+        if resection.is_some() {
+            crate::resection::require_support(&sp, &scene, &mesh, &prescribed)?;
+        }
         let prepared = Prepared {
             path: sp,
             scene,
@@ -185,6 +195,7 @@ impl Prepared {
             warnings,
             loads: load_notes,
             measurements,
+            resection,
         };
         prepared.require_supported()?;
         crate::imposed::check(prepared.imposed())?;
@@ -283,6 +294,9 @@ fn regions(sp: &Path, scene: &Scene, mesh: &Mesh) -> Result<Vec<usize>, SceneErr
                     names(mesh.element_sets.keys())
                 ))
             })?;
+            if members.is_empty() && region.resected {
+                continue; // removed by an earlier resection (a session's)
+            }
             if members.is_empty() {
                 return Err(set(format!(
                     "the element set is empty in {}; a region must select elements",

@@ -298,6 +298,11 @@ pub struct Region {
     pub elset: String,
     /// The material.
     pub material: Material,
+    /// Resected: the region's elements leave the model (default false).
+    #[serde(default)]
+    pub resected: bool,
+    /// With `resected`: the fluid pressure on the cavity's walls (Pa; default 0).
+    pub cavity_pressure: Option<f64>,
 }
 
 /// A displacement component.
@@ -726,6 +731,23 @@ impl Scene {
                     i + 1,
                     r.elset
                 ));
+            }
+            if let Some(p) = r.cavity_pressure {
+                if !r.resected {
+                    return Err(format!(
+                        "[[region]] #{} (elset '{}'): cavity_pressure goes with resected = true",
+                        i + 1,
+                        r.elset
+                    ));
+                }
+                if !(p >= 0.0 && p.is_finite()) {
+                    return Err(format!(
+                        "[[region]] #{} (elset '{}'): cavity_pressure must be finite and ≥ 0 (Pa), \
+                         got {p}",
+                        i + 1,
+                        r.elset
+                    ));
+                }
             }
             match (m.model, m.alpha) {
                 (MaterialModel::Ogden, None) => {

@@ -30,7 +30,7 @@ impl Session {
         let mut turned = g.clone();
         turned.direction = direction;
         turned.validate().map_err(err)?;
-        let body = crate::gravity::nodal_loads_with(p, &self.run.composed.model, &turned)?;
+        let body = crate::compose::dead_loads(p, &self.run.composed.model, Some(&turned))?;
         let loads = loads_of(p, &p.prescribed, &body)?;
         let c = &mut self.run.composed;
         c.body = body;
