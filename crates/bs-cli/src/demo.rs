@@ -64,7 +64,7 @@ pub fn demo_images(out: &Path) -> Result<ExitCode, Box<dyn std::error::Error>> {
         out,
         &out.join("warped_t1.nii.gz"),
         false,
-        Some(&out.join("preview.png")),
+        (Some(&out.join("preview.png")), None),
     )?;
     crate::field::run(&t1, out, &out.join("field.nii.gz"))?;
     Ok(ExitCode::SUCCESS)

@@ -132,6 +132,16 @@ enum Command {
         /// outline and a colour bar).
         #[arg(long, value_name = "PNG")]
         preview: Option<PathBuf>,
+        /// The preview's slices through this point instead (RAS mm), e.g. a tumour's
+        /// centre: `--preview-at -12,-37,50`.
+        #[arg(
+            long,
+            value_name = "X,Y,Z",
+            value_delimiter = ',',
+            allow_hyphen_values = true,
+            requires = "preview"
+        )]
+        preview_at: Option<Vec<f64>>,
     },
     /// Writes a run's result as an ITK displacement field on an image's grid:
     /// d(y) = X(y) - y inside the deformed brain, extended harmonically to zero at the skull,
@@ -283,8 +293,8 @@ fn main() -> ExitCode {
             cavity,
             craniotomy,
         }),
-        Command::Warp { image, result, out, labels, preview } => {
-            warp::run(&image, &result, &out, labels, preview.as_deref())
+        Command::Warp { image, result, out, labels, preview, preview_at } => {
+            warp::run(&image, &result, &out, labels, (preview.as_deref(), preview_at.as_deref()))
         }
         Command::Field { reference, result, out } => {
             field::run(&reference, &result, &out).map_err(Into::into)

@@ -138,6 +138,9 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
             threads,
             if threads == 1 { "" } else { "s" }
         );
+        for line in load_lines(p) {
+            eprintln!("{line}");
+        }
     }
     let every = if run.settings.kind == SolverKind::Dr { 50 } else { 1 };
     let mut reporter = Reporter::new(opts.quiet, run.settings.tolerance, every);
@@ -200,6 +203,35 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
         ));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// One line each on the scene's gravity and resection (none without).
+pub fn load_lines(p: &Prepared) -> Vec<String> {
+    let mut lines = Vec::new();
+    if let Some(g) = &p.scene.gravity {
+        let [x, y, z] = g.direction;
+        let fluid = g.fluid.map_or(String::new(), |f| {
+            let [a, b, c] = f.level;
+            format!("; fluid {} kg/m³ below the level through ({a}, {b}, {c})", f.density)
+        });
+        lines.push(format!(
+            "gravity: direction ({x}, {y}, {z}) in the scene's frame, {} m/s²{fluid}",
+            g.acceleration
+        ));
+    }
+    if let Some(r) = &p.resection {
+        let pressure = r.walls.iter().map(|w| w.1).fold(0.0, f64::max);
+        lines.push(format!(
+            "resected {}: {} elements removed, {} cavity wall triangles free (pressure up to {} \
+             Pa), {} nodes left in no element held",
+            r.regions.join(", "),
+            r.elements,
+            r.walls.len(),
+            pressure,
+            r.orphans.len()
+        ));
+    }
+    lines
 }
 
 /// One line on what the fit of measurement `i` did.

@@ -9,14 +9,22 @@ use bs_scene::outside::{Boundary, OutsideReport};
 use bs_scene::registration::Summary;
 
 /// Runs `warp` and prints what it did; with `preview`, also draws the three planes through
-/// the largest displacement into that PNG.
+/// the largest displacement (or the point given with it, RAS mm) into that PNG.
 pub fn run(
     image: &Path,
     result: &Path,
     out: &Path,
     labels: bool,
-    preview: Option<&Path>,
+    (preview, at): (Option<&Path>, Option<&[f64]>),
 ) -> Result<ExitCode, Box<dyn std::error::Error>> {
+    let at = match at {
+        None => None,
+        Some(&[x, y, z]) => Some([x, y, z]),
+        Some(v) => {
+            let n = v.len();
+            return Err(format!("--preview-at: give three numbers X,Y,Z (RAS mm), got {n}").into());
+        }
+    };
     if let Some(p) = preview
         && !p.to_string_lossy().to_ascii_lowercase().ends_with(".png")
     {
@@ -26,7 +34,8 @@ pub fn run(
         )
         .into());
     }
-    let summary = bs_scene::registration::warp_file(result, image, out, labels, preview.is_some())?;
+    let summary =
+        bs_scene::registration::warp_file(result, image, out, labels, preview.map(|_| at))?;
     print_summary("warped", &summary, if labels { "nearest label" } else { "trilinear" });
     if let (Some(path), Some(planes)) = (preview, &summary.planes) {
         draw_preview(path, image, planes)?;
@@ -58,7 +67,7 @@ fn draw_preview(
         .collect();
     let name = image.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let title = format!(
-        "{name}: brain shift, largest displacement {:.1} mm at voxel ({}, {}, {})",
+        "{name}: brain shift, largest displacement {:.1} mm; slices through voxel ({}, {}, {})",
         p.max_mm, p.voxel[0], p.voxel[1], p.voxel[2]
     );
     bs_preview::render(path, &title, &slices, p.window, p.max_mm)

@@ -77,7 +77,7 @@ impl BodyForce {
 
 impl Model {
     /// The consistent nodal loads of `body` (one per node, the model's force unit), for
-    /// [`Loads::set_forces`](crate::Loads::set_forces).
+    /// `Loads::set_forces`.
     pub fn body_loads(&self, body: &BodyForce) -> Result<Vec<Vector3<f64>>, BodyError> {
         body.check(self.elements.solids.len())?;
         let x = &self.reference;

@@ -1,5 +1,5 @@
 //! Boundary conditions: fixed and prescribed displacement components, and dead nodal
-//! forces (a body force's consistent load vector, [`crate::body`]); every component not
+//! forces (a body force's consistent load vector, `body.rs`); every component not
 //! constrained here carries only its nodal force.
 
 use bs_mesh::Vector3;

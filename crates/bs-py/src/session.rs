@@ -241,6 +241,41 @@ impl Session {
         }
     }
 
+    /// Resects the region whose element set is `region` (its elements leave the model; the
+    /// cavity's walls become free) and solves warm from the last good state; `regions()`
+    /// lists the keys. On an error the session keeps its model and state.
+    #[pyo3(signature = (region, progress=None))]
+    fn resect(
+        &self,
+        py: Python<'_>,
+        region: &str,
+        progress: Option<Py<PyAny>>,
+    ) -> PyResult<RunResult> {
+        let started = Instant::now();
+        let mut callback_error: Option<PyErr> = None;
+        let outcome = py.detach(|| {
+            with_threads(self.threads, || {
+                let threads = rayon::current_num_threads();
+                let mut s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+                let mut observe = observer(progress.as_ref(), &mut callback_error);
+                let solved = s.resect(region, &mut observe)?;
+                let ctx = RunContext { total_seconds: started.elapsed().as_secs_f64(), threads };
+                Ok::<_, SceneError>(RunResult::new(s.run(), solved, ctx))
+            })
+        });
+        let result = outcome.map_err(PyValueError::new_err)?.map_err(|e| scene_err(py, e))?;
+        match callback_error {
+            Some(e) => Err(e),
+            None => Ok(result),
+        }
+    }
+
+    /// The element sets of the regions still in the model: the keys of `resect`.
+    fn regions(&self) -> Vec<String> {
+        let s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        s.regions().into_iter().map(str::to_string).collect()
+    }
+
     /// Back to the reference state and the scene's own loads.
     fn reset(&self) {
         self.inner.lock().unwrap_or_else(|e| e.into_inner()).reset();

@@ -325,6 +325,7 @@ def test_refused_measurements_are_answered_and_the_session_keeps_its_state(serve
         (pyigtl.PointMessage([[0, 0, 0]] * 3, device_name="IntraopPoints"), "no [[measurement]]"),
         (pyigtl.StringMessage("0,0,0", device_name="Gravity"), "not a direction"),
         (pyigtl.StringMessage("0,-1,0", device_name="Gravity"), "no [gravity] to turn"),
+        (pyigtl.StringMessage("TUMOUR", device_name="Resect"), "not a region still in the model"),
     ]
     for message, text in bad:
         c.send_message(message, wait=True)

@@ -41,14 +41,15 @@ pub struct Planes {
     pub voxel: [usize; 3],
 }
 
-/// Cuts the planes of `g` through the voxel of largest |d| of `field`; `in_brain(n)`: voxel
-/// `n` lies inside the deformed brain.
+/// Cuts the planes of `g` through the voxel `at` (its index; `None`: the voxel of largest
+/// |d| of `field`); `in_brain(n)`: voxel `n` lies inside the deformed brain.
 pub fn planes(
     g: &Grid,
     in_brain: &dyn Fn(usize) -> bool,
     before: &Volume<f32>,
     after: &[f32],
     field: &[[f32; 3]],
+    at: Option<usize>,
 ) -> Planes {
     let [nx, ny, nz] = g.dims();
     let norm = |d: &[f32; 3]| (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
@@ -56,6 +57,7 @@ pub fn planes(
         .iter()
         .enumerate()
         .fold((0usize, 0.0f32), |(b, m), (n, d)| if norm(d) > m { (n, norm(d)) } else { (b, m) });
+    let best = at.unwrap_or(best);
     let v = [best % nx, (best / nx) % ny, best / (nx * ny)];
     let sp = g.spacing();
     let inside = in_brain;

@@ -738,15 +738,17 @@ fn output_error(e: bs_image::ImageError, out: &Path) -> SceneError {
 /// (`.nii`, `.nii.gz` or `.nrrd`) on the same grid (and, NIfTI to NIfTI, the same header);
 /// a labelmap with nearest-voxel sampling when `labels`. Nothing is written when an input
 /// is bad.
-/// With `planes`, the summary carries the three planes through the largest displacement
-/// (for a preview picture).
+/// With `planes`, the summary carries the three planes through the largest displacement, or
+/// through the world point (RAS mm) it names (for a preview picture).
 pub fn warp_file(
     result_dir: &Path,
     image: &Path,
     out: &Path,
     labels: bool,
-    planes: bool,
+    planes: Option<Option<[f64; 3]>>,
 ) -> Result<Summary, SceneError> {
+    let focus = planes.flatten();
+    let planes = planes.is_some();
     bs_image::formats::require_image_output(out).map_err(|e| output_error(e, out))?;
     let started = Instant::now();
     let result = RunResult::load(result_dir)?;
@@ -761,7 +763,7 @@ pub fn warp_file(
             read_seconds,
             InverseMap::warp_labels,
             |v| bs_image::formats::write_labels(out, v, header.as_ref()),
-            planes.then_some(|v: &u32| *v as f32),
+            planes.then_some((|v: &u32| *v as f32, focus)),
         )
     } else {
         let (volume, header) = bs_image::formats::read_image(image).map_err(image_error)?;
@@ -774,14 +776,28 @@ pub fn warp_file(
             read_seconds,
             InverseMap::warp,
             |v| bs_image::formats::write_image(out, v, header.as_ref()),
-            planes.then_some(|v: &f32| *v),
+            planes.then_some((|v: &f32| *v, focus)),
         )
     }
 }
 
+/// The index of the voxel nearest to the world point `p` (RAS mm), if it lies in the grid.
+fn voxel_of(g: &bs_image::Grid, p: [f64; 3]) -> Option<usize> {
+    let v = g.voxel(&bs_mesh::Point3::from(p));
+    let dims = g.dims();
+    let ijk: Vec<usize> = (0..3)
+        .map(|c| v[c].round())
+        .zip(dims)
+        .filter(|(x, d)| *x >= 0.0 && (*x as usize) < *d)
+        .map(|(x, _)| x as usize)
+        .collect();
+    (ijk.len() == 3).then(|| g.index(ijk[0], ijk[1], ijk[2]))
+}
+
 /// The part of [`warp_file`] common to images and labelmaps: the inverse map on the image's
 /// grid, `resample` through it, `write` the volume, the timings, and (with `grey`, the
-/// values as grey levels) the planes of a preview.
+/// values as grey levels, and the world point the planes go through, else the largest
+/// displacement) the planes of a preview.
 #[allow(clippy::too_many_arguments)]
 fn resample_and_write<T: Copy>(
     result: &RunResult,
@@ -791,8 +807,20 @@ fn resample_and_write<T: Copy>(
     read_seconds: f64,
     resample: impl FnOnce(&InverseMap, &Volume<T>, &[T]) -> Vec<T>,
     write: impl FnOnce(&Volume<T>) -> Result<(), bs_image::ImageError>,
-    grey: Option<impl Fn(&T) -> f32>,
+    grey: Option<(impl Fn(&T) -> f32, Option<[f64; 3]>)>,
 ) -> Result<Summary, SceneError> {
+    if let Some((_, Some(p))) = &grey
+        && voxel_of(&volume.grid, *p).is_none()
+    {
+        return Err(SceneError::Image {
+            file: image.to_path_buf(),
+            message: format!(
+                "the preview's point ({}, {}, {}) mm lies outside this image's grid: give a \
+                 point in the image (RAS mm)",
+                p[0], p[1], p[2]
+            ),
+        });
+    }
     let t = Instant::now();
     let map = InverseMap::new(result, &volume.grid, Space::Ras, image)?;
     let data = resample(&map, volume, &volume.data);
@@ -801,7 +829,7 @@ fn resample_and_write<T: Copy>(
     let warped = Volume { grid: volume.grid.clone(), data };
     write(&warped).map_err(image_error)?;
     let write_seconds = t.elapsed().as_secs_f64();
-    let planes = grey.map(|grey| {
+    let planes = grey.map(|(grey, focus)| {
         let f = |v: &Volume<T>| Volume {
             grid: v.grid.clone(),
             data: v.data.iter().map(&grey).collect(),
@@ -813,6 +841,7 @@ fn resample_and_write<T: Copy>(
             &f(volume),
             &f(&warped).data,
             &map.harmonic_field(),
+            focus.and_then(|p| voxel_of(map.grid(), p)),
         )
     });
     Ok(Summary {

@@ -168,3 +168,36 @@ fn resections_that_cannot_run_are_refused_by_name() {
     let e = Prepared::load(&scene(&d, "box.inp", &regions, 0.0)).unwrap_err().to_string();
     assert!(e.contains("has no held node") && e.contains("'SLAB'"), "{e}");
 }
+
+#[test]
+fn a_region_resected_in_a_session_equals_a_cold_run_of_the_resected_scene() {
+    let d = tmp("session");
+    bs_mesh::io::write_mesh(&d.join("box.inp"), &box_with_tumour(), &Default::default()).unwrap();
+    let intact = region("BRAIN", "") + &region("TUMOUR", "");
+    let mut session =
+        bs_scene::Session::new(Prepared::load(&scene(&d, "box.inp", &intact, 4.0)).unwrap())
+            .unwrap();
+    session.solve(&mut |_| {}).unwrap();
+    assert_eq!(session.regions(), vec!["BRAIN", "TUMOUR"]);
+    let before = session.displacements().to_vec();
+    let e = session.resect("TUMOR", &mut |_| {}).unwrap_err().to_string();
+    assert!(e.contains("TUMOR") && e.contains("BRAIN, TUMOUR"), "{e}");
+    assert_eq!(session.displacements(), &before[..]);
+    let warm = session.resect("TUMOUR", &mut |_| {}).unwrap().solution.displacements;
+    let d2 = tmp("session-cold");
+    bs_mesh::io::write_mesh(&d2.join("box.inp"), &box_with_tumour(), &Default::default()).unwrap();
+    let resected = region("BRAIN", "") + &region("TUMOUR", "resected = true\n");
+    let (_, cold) = solve(&scene(&d2, "box.inp", &resected, 4.0));
+    // Both at the scene's 1e-6 mm tolerance, converging superlinearly: 1e-5 mm.
+    let diff = warm.iter().zip(&cold).map(|(a, b)| (a - b).amax()).fold(0.0, f64::max);
+    assert!(diff < 1e-5, "{diff}");
+    // The push squeezed the intact tumour; the cavity lets the box give more under the same
+    // push (the top's reaction falls): the answers differ.
+    let change = warm.iter().zip(&before).map(|(a, b)| (a - b).amax()).fold(0.0, f64::max);
+    assert!(change > 0.1, "{change}");
+    assert_eq!(session.regions(), vec!["BRAIN"]);
+    // Resecting the rest would remove everything: refused, the session unchanged.
+    let e = session.resect("BRAIN", &mut |_| {}).unwrap_err().to_string();
+    assert!(e.contains("removes every element"), "{e}");
+    assert_eq!(session.displacements(), &warm[..]);
+}

@@ -25,6 +25,8 @@ and unit):
   of the set, in the scene's frame and unit, as ``displacement_file``;
 * STRING ``Gravity``: ``x,y,z``, gravity's new direction in RAS (the head repositioned);
   the scene's ``[gravity]`` is turned and the brain solved again;
+* STRING ``Resect``: the element set of a region; its elements leave the model (the
+  cavity's walls free) and the brain is solved again warm;
 * POINT or POLYDATA ``IntraopPoints``: a new scan (its points; triangles, if any, ignored)
   of the scene's ``[[measurement]]`` with points, *fitted* as that measurement is
   (docs/fit.md); the Report's ``measurements`` say how (inliers, residual RMS and max). A
@@ -156,6 +158,16 @@ class Brainshift:
                 points, _ = igtl.unpack_polydata(h, body, triangles=False)
             self.log(f"  {h}: {len(points)} scanned points for {self.measured[0]}")
             return {"points": {self.measured[0]: self.frame.to_scene(points)}}
+        if key == ("STRING", "Resect"):
+            m = igtl.unpack_with(pyigtl.StringMessage, h, body)
+            region = m.string.strip()
+            if region not in self.session.regions():
+                raise igtl.MessageError(
+                    f"{h}: {region!r} is not a region still in the model; the regions are: "
+                    f"{', '.join(self.session.regions())}"
+                )
+            self.log(f"  {h}: resecting {region}")
+            return {"resect": region}
         if key == ("STRING", "Gravity"):
             m = igtl.unpack_with(pyigtl.StringMessage, h, body)
             direction = gravity_of(m.string, h)
@@ -194,7 +206,7 @@ class Brainshift:
         raise igtl.MessageError(
             f"{h}: not a measurement this server takes; it takes POLYDATA 'IntraopSurface', "
             "POINT 'PreopLandmarks' + 'IntraopLandmarks', STRING 'Displacements', POINT/POLYDATA "
-            "'IntraopPoints' (a scan to fit), or STRING 'Gravity' (x,y,z in RAS)"
+            "'IntraopPoints' (a scan to fit), STRING 'Gravity' (x,y,z in RAS) or STRING 'Resect' (a region)"
         )
 
     def _progress(self, p: dict) -> None:
@@ -210,8 +222,12 @@ class Brainshift:
         surgeon waits for), then DisplacementField, DeformedBrain and Report. Raises
         BrainshiftError before the first reply (the session keeps its last good state)."""
         t0 = time.perf_counter()
+        progress = self._progress if self.verbose else None
         with self.lock:
-            r = self.session.update(**loads, progress=self._progress if self.verbose else None)
+            if "resect" in loads:
+                r = self.session.resect(loads["resect"], progress=progress)
+            else:
+                r = self.session.update(**loads, progress=progress)
         solved = time.perf_counter()
 
         def replies():

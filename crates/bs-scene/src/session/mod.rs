@@ -25,6 +25,7 @@ use crate::verify::verify;
 mod gravity;
 mod history;
 mod points;
+mod resect;
 
 use history::History;
 pub use history::{SECANT_DEVIATION, secant_ratio};
