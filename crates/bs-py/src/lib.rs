@@ -508,7 +508,11 @@ impl RunResult {
             p.scene.space.space(),
             p.scene.units,
         )
-        .map(|r| r.with_skull(p.skull.clone()))
+        .map(|r| {
+            let mut r = r.with_skull(p.skull.clone());
+            r.resected = p.resection.is_some();
+            r
+        })
         .map_err(|e| scene_err(py, e))
     }
 }

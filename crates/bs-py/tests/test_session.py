@@ -164,3 +164,10 @@ def test_a_tumour_resected_in_a_session_agrees_with_the_cli_run_of_the_resected_
     assert np.abs(r.displacements - u_cli).max() < 0.01
     # Without the stiffer tumour the tissue under the craniotomy gives: the answers differ.
     assert np.abs(r.displacements - intact.displacements).max() > 0.1
+    # The warped T1 shows the cavity as the fluid around the brain (0 in this skull-stripped
+    # template), where the pre-operative image has the tumour's tissue.
+    import nibabel
+
+    t1 = fixtures / "mni152" / "t1.nii.gz"
+    warped, _ = r.warp(t1)
+    assert nibabel.load(t1).get_fdata()[86, 97, 122] > 100 and warped[86, 97, 122] == 0.0

@@ -49,6 +49,43 @@ pub fn band_width(max_u: f64) -> f64 {
     (2.0 * max_u).max(MIN_BAND_MM)
 }
 
+/// The gap voxels (`gap`, ascending) the deformed brain (`in_brain`) encloses: those not
+/// connected through face neighbours in the gap to a voxel outside both (beyond the skull
+/// or the band) or to the grid's border. After a resection they are its cavity.
+pub fn enclosed(grid: &Grid, gap: &[u32], in_brain: &[bool]) -> Vec<u32> {
+    let [nx, ny, nz] = grid.dims();
+    let mut is_gap = vec![false; nx * ny * nz];
+    gap.iter().for_each(|&n| is_gap[n as usize] = true);
+    let neighbours = |n: usize| {
+        let (i, j, k) = (n % nx, (n / nx) % ny, n / (nx * ny));
+        [
+            (i > 0).then(|| n - 1),
+            (i + 1 < nx).then(|| n + 1),
+            (j > 0).then(|| n - nx),
+            (j + 1 < ny).then(|| n + nx),
+            (k > 0).then(|| n - nx * ny),
+            (k + 1 < nz).then(|| n + nx * ny),
+        ]
+    };
+    // Seeds: gap voxels on the border or beside a voxel that is neither gap nor brain.
+    let mut reached = vec![false; nx * ny * nz];
+    let mut queue: Vec<usize> = gap
+        .iter()
+        .map(|&n| n as usize)
+        .filter(|&n| neighbours(n).iter().any(|q| q.is_none_or(|q| !is_gap[q] && !in_brain[q])))
+        .collect();
+    queue.iter().for_each(|&n| reached[n] = true);
+    while let Some(n) = queue.pop() {
+        for q in neighbours(n).into_iter().flatten() {
+            if is_gap[q] && !reached[q] {
+                reached[q] = true;
+                queue.push(q);
+            }
+        }
+    }
+    gap.iter().copied().filter(|&n| !reached[n as usize]).collect()
+}
+
 /// Where the extension stops.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Boundary {

@@ -51,6 +51,9 @@ pub struct RunResult {
     pub skull: Option<TriSurface>,
     /// Things worth knowing (e.g. a report written before frames were recorded).
     pub notes: Vec<String>,
+    /// The run resected a region (report.json's `resected`): gap voxels the deformed brain
+    /// encloses are its cavity, filled with fluid by the warps.
+    pub resected: bool,
 }
 
 impl RunResult {
@@ -147,9 +150,11 @@ impl RunResult {
             }
             None
         };
+        let resected = json.get("resected").is_some_and(|r| !r.is_null());
         RunResult::new(dir, mesh, displacements, space, units).map(|mut r| {
             r.notes.extend(notes);
             r.skull = skull;
+            r.resected = resected;
             r
         })
     }
@@ -185,6 +190,7 @@ impl RunResult {
             units,
             skull: None,
             notes: vec![],
+            resected: false,
         })
     }
 
@@ -218,6 +224,9 @@ pub struct InverseMap {
     /// The scene's skull in the image frame (mm), for the pre-operative gap on an image's
     /// grid (None: no skull, or the identity outside the brain).
     skull: Option<TriSurface>,
+    /// The gap voxels the deformed brain encloses (a resection's cavity; ascending), which
+    /// the warps fill with fluid.
+    enclosed: Vec<u32>,
 }
 
 /// What the map does outside the deformed brain.
@@ -327,6 +336,7 @@ impl InverseMap {
             ids,
             outside: None,
             skull: None,
+            enclosed: Vec::new(),
         };
         if choice == OutsideChoice::Extend {
             map.skull = result.skull.as_ref().map(|s| TriSurface {
@@ -343,6 +353,9 @@ impl InverseMap {
                 |n| map.exact_displacement(n).unwrap_or([0.0; 3]),
                 |n| map.extrapolated_displacement(n),
             );
+            if result.resected {
+                map.enclosed = crate::outside::enclosed(grid, &outside.voxels, &in_brain);
+            }
             map.outside = Some(outside);
         }
         Ok(map)
@@ -441,9 +454,39 @@ impl InverseMap {
     /// (see [`gap_points`](Self::gap_points)): beyond the skin never the pre-operative
     /// brain or bone, so the warp equals resampling through the exported field (ITK,
     /// Slicer) on the map's grid.
+    ///
+    /// After a resection, the cavity (the gap voxels the deformed brain encloses) shows
+    /// fluid: the median of what the rest of the gap shows (the fluid that was between
+    /// brain and skull).
     pub fn warp(&self, image: &Volume<f32>, keep: &[f32]) -> Vec<f32> {
         let gap = self.outside.as_ref().and_then(|_| self.preop_gap(&image.grid));
-        self.warp_with_gap(image, keep, gap.as_deref())
+        let mut out = self.warp_with_gap(image, keep, gap.as_deref());
+        if !self.enclosed.is_empty() {
+            let fluid = self.outer_gap_median(&out);
+            self.enclosed.iter().for_each(|&n| out[n as usize] = fluid);
+        }
+        out
+    }
+
+    /// The median of `values` over the gap voxels not enclosed by the brain.
+    fn outer_gap_median(&self, values: &[f32]) -> f32 {
+        let mut outer: Vec<f32> = self
+            .gap_voxels()
+            .iter()
+            .filter(|n| self.enclosed.binary_search(n).is_err())
+            .map(|&n| values[n as usize])
+            .filter(|v| v.is_finite())
+            .collect();
+        if outer.is_empty() {
+            return 0.0;
+        }
+        let mid = outer.len() / 2;
+        *outer.select_nth_unstable_by(mid, f32::total_cmp).1
+    }
+
+    /// The gap voxels the deformed brain encloses (a resection's cavity), ascending.
+    pub fn enclosed_voxels(&self) -> &[u32] {
+        &self.enclosed
     }
 
     /// [`warp`](Self::warp) with the pre-operative gap on the image's grid given (it depends
@@ -594,6 +637,8 @@ impl InverseMap {
                 Some(bs_image::sample::nearest_excluding(labels, x, &brain, GAP_SEARCH_VOXELS))
             });
         }
+        // A resection's cavity is fluid: label 0.
+        self.enclosed.iter().for_each(|&n| out[n as usize] = 0);
         out
     }
 

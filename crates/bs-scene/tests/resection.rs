@@ -201,3 +201,52 @@ fn a_region_resected_in_a_session_equals_a_cold_run_of_the_resected_scene() {
     assert!(e.contains("removes every element"), "{e}");
     assert_eq!(session.displacements(), &warm[..]);
 }
+
+/// The box's run written as `brainshift run` writes it, into `out`.
+fn write_run(scene_path: &Path, out: &Path) {
+    let mut run = Run::prepare(Prepared::load(scene_path).unwrap()).unwrap();
+    let solved = run.solve(&mut |_| {}).unwrap();
+    let ctx = bs_scene::output::RunContext { total_seconds: 0.0, threads: 1 };
+    let report = bs_scene::output::report(&run, &solved, ctx);
+    bs_scene::output::write_outputs(out, &run.prepared, &solved, &report).unwrap();
+}
+
+#[test]
+fn the_warped_image_shows_the_cavity_as_the_fluid_around_the_brain() {
+    use bs_image::{Grid, Volume};
+    let d = tmp("warp");
+    bs_mesh::io::write_mesh(&d.join("box.inp"), &box_with_tumour(), &Default::default()).unwrap();
+    let regions = region("BRAIN", "") + &region("TUMOUR", "resected = true\n");
+    write_run(&scene(&d, "box.inp", &regions, 4.0), &d.join("run"));
+    // A pre-operative image: tissue (100) in the box, the tumour included, fluid (7) around.
+    let grid = Grid::axis_aligned([56, 56, 56], [1.0; 3], [-8.0; 3]).unwrap();
+    let tissue = |n: usize| grid.centre(n).iter().all(|&c| (0.0..=40.0).contains(&c));
+    let image = Volume {
+        data: (0..grid.len()).map(|n| if tissue(n) { 100.0 } else { 7.0 }).collect(),
+        grid: grid.clone(),
+    };
+    bs_image::nifti::write_image(&d.join("preop.nii"), &image, None).unwrap();
+    let labels = Volume {
+        data: (0..grid.len()).map(|n| u32::from(tissue(n)) * 5).collect(),
+        grid: grid.clone(),
+    };
+    bs_image::nifti::write_labels(&d.join("labels.nii"), &labels, None).unwrap();
+    let out = d.join("warped.nii");
+    bs_scene::registration::warp_file(&d.join("run"), &d.join("preop.nii"), &out, false, None)
+        .unwrap();
+    let (warped, _) = bs_image::formats::read_image(&out).unwrap();
+    // The cavity's centre (the push moved it about 2 mm down) reads the fluid, not the
+    // tumour's tissue the pre-operative image has there; the brain beside it stays tissue.
+    let at = |x: f64, y: f64, z: f64| {
+        let v = grid.voxel(&Point3::new(x, y, z)).map(|c| c.round() as usize);
+        grid.index(v[0], v[1], v[2])
+    };
+    assert_eq!(warped.data[at(20.0, 20.0, 18.0)], 7.0);
+    assert_eq!(warped.data[at(20.0, 20.0, 6.0)], 100.0);
+    let out = d.join("labels-warped.nii");
+    bs_scene::registration::warp_file(&d.join("run"), &d.join("labels.nii"), &out, true, None)
+        .unwrap();
+    let (warped, _) = bs_image::formats::read_labels(&out).unwrap();
+    assert_eq!(warped.data[at(20.0, 20.0, 18.0)], 0);
+    assert_eq!(warped.data[at(20.0, 20.0, 6.0)], 5);
+}
