@@ -276,7 +276,8 @@ impl Session {
         s.regions().into_iter().map(str::to_string).collect()
     }
 
-    /// Back to the reference state and the scene's own loads.
+    /// Back to the reference state and the scene's own boundary values (a turned gravity
+    /// and resected regions stay).
     fn reset(&self) {
         self.inner.lock().unwrap_or_else(|e| e.into_inner()).reset();
     }

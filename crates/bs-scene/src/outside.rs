@@ -266,6 +266,31 @@ mod tests {
     use super::*;
 
     #[test]
+    fn only_the_gap_the_brain_encloses_is_enclosed() {
+        // A 9³ grid: a brain shell (voxels 2..=6 on every axis) around a hole (4, 4, 4), gap
+        // voxels the hole and the layer just outside the shell (1 and 7 on some axis).
+        let g = Grid::axis_aligned([9, 9, 9], [1.0; 3], [0.0; 3]).unwrap();
+        let ijk = |n: usize| [n % 9, (n / 9) % 9, n / 81];
+        let within =
+            |v: [usize; 3], lo: usize, hi: usize| v.iter().all(|&c| (lo..=hi).contains(&c));
+        let hole = g.index(4, 4, 4);
+        let in_brain: Vec<bool> = (0..g.len()).map(|n| within(ijk(n), 2, 6) && n != hole).collect();
+        let gap: Vec<u32> = (0..g.len())
+            .filter(|&n| n == hole || (within(ijk(n), 1, 7) && !within(ijk(n), 2, 6)))
+            .map(|n| n as u32)
+            .collect();
+        assert_eq!(enclosed(&g, &gap, &in_brain), vec![hole as u32]);
+        // Open the shell at one voxel: the hole joins the outer gap.
+        let mut open = in_brain.clone();
+        open[g.index(4, 4, 5)] = false;
+        open[g.index(4, 4, 6)] = false;
+        let mut gap_open = gap.clone();
+        gap_open.extend([g.index(4, 4, 5) as u32, g.index(4, 4, 6) as u32]);
+        gap_open.sort_unstable();
+        assert!(enclosed(&g, &gap_open, &open).is_empty());
+    }
+
+    #[test]
     fn merge_interleaves_two_ascending_lists_with_their_values() {
         let skin = [(2u32, [2.0; 3]), (5, [5.0; 3]), (9, [9.0; 3])];
         let voxels = [0u32, 3, 4, 10, 11];

@@ -86,7 +86,8 @@ impl Session {
         select_nodes(&p.path, &p.scene, &p.mesh, i, b).map(|(_, nodes)| nodes)
     }
 
-    /// Back to the reference state and the scene's own loads.
+    /// Back to the reference state and the scene's own boundary values (a turned gravity
+    /// and resected regions stay as they are: the head and the cavity do not come back).
     pub fn reset(&mut self) {
         self.state.iter_mut().for_each(|u| *u = Vector3::zeros());
         self.warm = false;
