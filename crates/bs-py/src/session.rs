@@ -211,34 +211,20 @@ impl Session {
                  surface=, landmarks=) in one call, not both; call update twice",
             ));
         }
-        let started = Instant::now();
-        let mut callback_error: Option<PyErr> = None;
-        let outcome = py.detach(|| {
-            with_threads(self.threads, || {
-                let threads = rayon::current_num_threads();
-                let mut s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
-                let mut observe = observer(progress.as_ref(), &mut callback_error);
-                let turned = gravity.map(|g| s.set_gravity(g)).transpose()?;
-                let solved = if !scans.is_empty() {
-                    s.update_points(&scans, &mut observe)
-                } else if loads.is_empty() {
-                    s.solve(&mut observe)
-                } else {
-                    s.update(&loads, &mut observe)
-                };
-                if let (Err(_), Some(previous)) = (&solved, turned) {
-                    s.set_gravity(previous).expect("the previous direction was accepted");
-                }
-                let solved = solved?;
-                let ctx = RunContext { total_seconds: started.elapsed().as_secs_f64(), threads };
-                Ok::<_, SceneError>(RunResult::new(s.run(), solved, ctx))
-            })
-        });
-        let result = outcome.map_err(PyValueError::new_err)?.map_err(|e| scene_err(py, e))?;
-        match callback_error {
-            Some(e) => Err(e),
-            None => Ok(result),
-        }
+        self.solve_with(py, progress.as_ref(), |s, observe| {
+            let turned = gravity.map(|g| s.set_gravity(g)).transpose()?;
+            let solved = if !scans.is_empty() {
+                s.update_points(&scans, observe)
+            } else if loads.is_empty() {
+                s.solve(observe)
+            } else {
+                s.update(&loads, observe)
+            };
+            if let (Err(_), Some(previous)) = (&solved, turned) {
+                s.set_gravity(previous).expect("the previous direction was accepted");
+            }
+            solved
+        })
     }
 
     /// Resects the region whose element set is `region` (its elements leave the model; the
@@ -251,23 +237,7 @@ impl Session {
         region: &str,
         progress: Option<Py<PyAny>>,
     ) -> PyResult<RunResult> {
-        let started = Instant::now();
-        let mut callback_error: Option<PyErr> = None;
-        let outcome = py.detach(|| {
-            with_threads(self.threads, || {
-                let threads = rayon::current_num_threads();
-                let mut s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
-                let mut observe = observer(progress.as_ref(), &mut callback_error);
-                let solved = s.resect(region, &mut observe)?;
-                let ctx = RunContext { total_seconds: started.elapsed().as_secs_f64(), threads };
-                Ok::<_, SceneError>(RunResult::new(s.run(), solved, ctx))
-            })
-        });
-        let result = outcome.map_err(PyValueError::new_err)?.map_err(|e| scene_err(py, e))?;
-        match callback_error {
-            Some(e) => Err(e),
-            None => Ok(result),
-        }
+        self.solve_with(py, progress.as_ref(), |s, observe| s.resect(region, observe))
     }
 
     /// The element sets of the regions still in the model: the keys of `resect`.
@@ -324,5 +294,39 @@ impl Session {
 impl Drop for Session {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.scratch);
+    }
+}
+
+impl Session {
+    /// Runs `call` on the locked session without the GIL, on the session's threads, with
+    /// `progress` (if any) called per solver iteration; its verified result as a `Result`.
+    /// An exception raised by `progress` is raised after the solve.
+    fn solve_with(
+        &self,
+        py: Python<'_>,
+        progress: Option<&Py<PyAny>>,
+        call: impl FnOnce(
+            &mut bs_scene::Session,
+            &mut dyn FnMut(&bs_scene::Progress),
+        ) -> Result<bs_scene::Solved, SceneError>
+        + Send,
+    ) -> PyResult<RunResult> {
+        let started = Instant::now();
+        let mut callback_error: Option<PyErr> = None;
+        let outcome = py.detach(|| {
+            with_threads(self.threads, || {
+                let threads = rayon::current_num_threads();
+                let mut s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+                let mut observe = observer(progress, &mut callback_error);
+                let solved = call(&mut s, &mut observe)?;
+                let ctx = RunContext { total_seconds: started.elapsed().as_secs_f64(), threads };
+                Ok::<_, SceneError>(RunResult::new(s.run(), solved, ctx))
+            })
+        });
+        let result = outcome.map_err(PyValueError::new_err)?.map_err(|e| scene_err(py, e))?;
+        match callback_error {
+            Some(e) => Err(e),
+            None => Ok(result),
+        }
     }
 }
