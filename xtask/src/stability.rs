@@ -32,6 +32,7 @@ mod clinical;
 mod knife_edge;
 mod measure;
 mod meshes;
+mod trace;
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -482,7 +483,7 @@ fn rows(scope: Scope, dir: &Path) -> Result<Vec<Cell>, String> {
 
     // The paper's ellipsoid, pushed 10–40 mm: DR with three load ramps on the coarse mesh
     // (a run that stops says at which ramp load), Newton–Krylov on every mesh, DR at 40 mm
-    // on the rim mesh, and CalculiX's stored outcome.
+    // on the rim and hexahedral meshes, and CalculiX's stored outcome.
     let ell =
         Prepared::load(&root().join("fixtures/ellipsoid/scene.toml")).map_err(|e| e.to_string())?;
     for ramp in meshes::RAMPS {
@@ -505,7 +506,9 @@ fn rows(scope: Scope, dir: &Path) -> Result<Vec<Cell>, String> {
     for (name, scene) in meshes::MESHES {
         meshes::by_mesh(&mut cells, name, scene)?;
     }
-    meshes::dr_on_rim(&mut cells)?;
+    for (name, scene) in meshes::DR_MESHES {
+        meshes::dr_at_40mm(&mut cells, name, scene)?;
+    }
     let dir = root().join("fixtures/ellipsoid/reference");
     let row = "ellipsoid load, CalculiX K=10";
     for (load, tag) in [("10 mm", "ccx-k10"), ("40 mm", "ccx-40mm-k10")] {
@@ -716,10 +719,13 @@ pub fn markdown(cells: &[Cell]) -> String {
 
 /// `cargo xtask stability [--quick]`.
 pub fn main(args: &[String]) -> Result<(), String> {
+    if args.first().is_some_and(|a| a == "trace") {
+        return trace::main(&args[1..]);
+    }
     let scope = match args {
         [] => Scope::Full,
         [q] if q == "--quick" => Scope::Quick,
-        _ => return Err("usage: cargo xtask stability [--quick]".into()),
+        _ => return Err("usage: cargo xtask stability [--quick] | stability trace SCENE …".into()),
     };
     let started = std::time::Instant::now();
     let cells = run(scope)?;

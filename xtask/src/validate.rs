@@ -90,6 +90,7 @@ pub fn run(scope: Scope) -> Result<Vec<Row>, String> {
     dr_vs_newton(&mut add)?;
     handler_queries(&mut add)?;
     if scope == Scope::Full {
+        paper_40mm(&mut add)?;
         handler_solves(&mut add)?;
         calculix(&mut add)?;
         determinism(&mut add)?;
@@ -290,6 +291,30 @@ fn dr_vs_newton(add: &mut dyn FnMut(Row)) -> Result<(), String> {
             tolerance: 10.0 * tol,
             unit: "mm",
         });
+    }
+    Ok(())
+}
+
+/// The paper's first experiment by the paper's method: the hexahedral ellipsoid pushed
+/// 40 mm with skull contact (`fixtures/ellipsoid/scene-40mm-dr.toml`), Dynamic Relaxation
+/// against Newton–Krylov on the same scene. The paper's DR agreed with LS-Dyna to 0.12 mm
+/// mean; two of our solvers converged to 1e-3 mm on the same discrete problem must agree at
+/// least as well (the max allows 1 mm for a different contact equilibrium on a few nodes).
+fn paper_40mm(add: &mut dyn FnMut(Row)) -> Result<(), String> {
+    let p = load("fixtures/ellipsoid/scene-40mm-dr.toml")?;
+    let dr = solve(&p, &Variant::default(), "DR")?;
+    let nk = Variant {
+        solver: Some(SolverKind::NewtonKrylov),
+        max_steps: Some(1000),
+        ..Variant::default()
+    };
+    let nk = solve(&p, &nk, "Newton-Krylov")?;
+    let (mean, max) = difference(&dr.displacements, &nk.displacements, None);
+    let case = "paper 40 mm / ellipsoid hex DR vs Newton-Krylov";
+    for (quantity, value, tolerance) in
+        [("mean nodal difference", mean, 0.12), ("max nodal difference", max, 1.0)]
+    {
+        add(Row { case: case.into(), quantity: quantity.into(), value, tolerance, unit: "mm" });
     }
     Ok(())
 }

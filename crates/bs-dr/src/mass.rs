@@ -2,11 +2,12 @@
 //! Dynamic Relaxation's fictitious masses, all from each element's volume, density and
 //! stiffness bound, shared equally by its nodes.
 
-use bs_mesh::Vector3;
+use bs_mesh::{Point3, Vector3};
+use nalgebra::Matrix3;
 use rayon::prelude::*;
 
-use crate::element::Tet;
 use crate::element::bound::BoundModuli;
+use crate::element::{ElementView, Hex, Tet};
 use crate::model::Model;
 
 impl Model {
@@ -72,32 +73,84 @@ impl Model {
     }
 
     /// [`dr_masses_into`](Self::dr_masses_into) for a run that starts from the displacements
-    /// `u` instead of the reference state: each tetrahedron's bound is the larger of its
+    /// `u` instead of the reference state: each element's bound is the larger of its
     /// reference one and the one of its shape at `X + u` (same moduli). A start state with
     /// elements flattened under a deep push (the continuation's last converged level) has
     /// critical steps far below the reference ones, and masses from the reference shapes
-    /// make the explicit iteration unstable at once. A tetrahedron inverted or flat at
-    /// `X + u` keeps its reference bound (the forces will name it).
+    /// make the explicit iteration unstable at once. An element inverted or flat at `X + u`
+    /// keeps its reference bound (the forces will name it).
     pub fn dr_masses_at_into(&self, step_fraction: f64, u: &[Vector3<f64>], masses: &mut [f64]) {
         if u.iter().all(|d| *d == Vector3::zeros()) {
             return self.dr_masses_into(step_fraction, masses);
         }
+        let bound = self.deformed_stiffness_bounds(u);
+        self.masses_from_bounds(step_fraction, &bound, masses);
+    }
+
+    /// Each element's stiffness bound, the larger of its reference one and the one of its
+    /// shape at `X + u` (mesh element order).
+    pub(crate) fn deformed_stiffness_bounds(&self, u: &[Vector3<f64>]) -> Vec<f64> {
         let moduli = BoundModuli::of(&self.elements.solids);
         let reference = &self.reference;
         let (tets, tet_elem) = (&self.elements.tets, &self.elements.tet_elem);
-        let moved: Vec<f64> = tets
+        let tet_bounds: Vec<f64> = tets
             .par_iter()
             .map(|t| {
-                let x = t.nodes.map(|a| reference[a as usize] + u[a as usize]);
+                let x = corners_at(reference, u, &t.nodes);
                 Tet::new(t.nodes, t.mat, &x)
                     .map_or(0.0, |m| m.stiffness_bound(&moduli[t.mat as usize]))
             })
             .collect();
+        let (hexes, hex_elem) = (&self.elements.hexes, &self.elements.hex_elem);
+        let kappa_hg = self.options.hourglass;
+        let solids = &self.elements.solids;
+        let hex_bounds: Vec<f64> = hexes
+            .par_iter()
+            .map(|h| {
+                let x = corners_at(reference, u, &h.nodes);
+                let el = solids[h.mat as usize].material.elastic();
+                Hex::new(h.nodes, h.mat, &x, &el, kappa_hg)
+                    .map_or(0.0, |m| m.stiffness_bound(&moduli[h.mat as usize]))
+            })
+            .collect();
         let mut bound = self.stiffness_bound.clone();
-        for (&e, b) in tet_elem.iter().zip(moved) {
+        for (&e, b) in tet_elem.iter().zip(tet_bounds).chain(hex_elem.iter().zip(hex_bounds)) {
             bound[e as usize] = bound[e as usize].max(b);
         }
+        bound
+    }
+
+    /// The masses of [`dr_masses_into`](Self::dr_masses_into) with each element's bound
+    /// scaled by how much stiffer its shape at `X + u` is,
+    /// `max(1, J λ_max(F⁻ᵀ S F⁻¹) / λ_max(S))` with `S = Σ_a g_a g_aᵀ` of the reference
+    /// gradients: the ratio of `V λ_max(Σ_a g_a g_aᵀ)` at the current and the reference shape,
+    /// which the element's largest eigenvalue follows as it flattens (`1/h²` for a
+    /// thickness `h`; 1 for a rotation). A few hundred flops per element, for refreshing
+    /// the masses during a run ([`DynamicRelaxation`](crate::DynamicRelaxation) does every
+    /// ten steps); an inverted element keeps its reference bound.
+    pub fn dr_masses_stiffened_into(
+        &self,
+        step_fraction: f64,
+        u: &[Vector3<f64>],
+        masses: &mut [f64],
+    ) {
+        let mut bound = vec![0.0; self.element_count()];
+        let scaled: Vec<(usize, f64)> = self
+            .elements
+            .par_iter()
+            .with_min_len(1024)
+            .map(|(e, v)| (e, self.stiffness_bound[e] * shape_stiffening(&v, u)))
+            .collect();
+        for (e, b) in scaled {
+            bound[e] = b;
+        }
         self.masses_from_bounds(step_fraction, &bound, masses);
+    }
+
+    /// The smallest element length `min_e V_e^(1/3)` (reference volumes; infinite without
+    /// elements).
+    pub fn smallest_element_length(&self) -> f64 {
+        self.elements.iter().map(|(_, v)| v.vol.cbrt()).fold(f64::INFINITY, f64::min)
     }
 
     /// Total reference volume and volume-weighted sum of the small-strain shear moduli.
@@ -110,6 +163,46 @@ impl Model {
         }
         (v, mu)
     }
+}
+
+/// `max(1, J λ_max(F⁻ᵀ S F⁻¹) / λ_max(S))` of an element at `u` (1 if inverted or
+/// degenerate), `S = Σ_a g_a g_aᵀ` of its reference gradients.
+fn shape_stiffening(v: &ElementView<'_>, u: &[Vector3<f64>]) -> f64 {
+    let f = v.deformation_gradient(u);
+    let j = f.determinant();
+    let Some(f_inv) = f.try_inverse().filter(|_| j > 0.0) else { return 1.0 };
+    let mut s = Matrix3::zeros();
+    for g in v.g {
+        let g = Vector3::from(*g);
+        s += g * g.transpose();
+    }
+    let current = f_inv.transpose() * s * f_inv;
+    let ratio = j * largest_eigenvalue(&current) / largest_eigenvalue(&s);
+    if ratio.is_finite() { ratio.max(1.0) } else { 1.0 }
+}
+
+/// The largest eigenvalue of a symmetric 3×3 matrix, in closed form (the trigonometric
+/// solution of the characteristic cubic, Smith 1961).
+fn largest_eigenvalue(a: &Matrix3<f64>) -> f64 {
+    let q = a.trace() / 3.0;
+    let off = a[(0, 1)].powi(2) + a[(0, 2)].powi(2) + a[(1, 2)].powi(2);
+    let diag = (a[(0, 0)] - q).powi(2) + (a[(1, 1)] - q).powi(2) + (a[(2, 2)] - q).powi(2);
+    let p = ((diag + 2.0 * off) / 6.0).sqrt();
+    if p <= f64::EPSILON * q.abs() {
+        return q;
+    }
+    let b = (a - Matrix3::from_diagonal_element(q)) / p;
+    let phi = (0.5 * b.determinant()).clamp(-1.0, 1.0).acos() / 3.0;
+    q + 2.0 * p * phi.cos()
+}
+
+/// The corners of an element at `X + u`.
+fn corners_at<const N: usize>(
+    reference: &[Point3<f64>],
+    u: &[Vector3<f64>],
+    nodes: &[u32; N],
+) -> [Point3<f64>; N] {
+    nodes.map(|a| reference[a as usize] + u[a as usize])
 }
 
 #[cfg(test)]
@@ -176,33 +269,59 @@ mod tests {
     /// reference one and the one of the same mesh built with the deformed nodes as its
     /// reference (an independent model); from zero displacements, the reference masses.
     #[test]
-    fn dr_masses_at_a_deformed_state_take_each_tets_stiffer_shape() {
-        let solid = Solid { material: Material::neo_hookean(3000.0, 0.45).unwrap(), density: 1.0 };
-        let mesh = bs_mesh::structured::box_mesh(2, 1.0, true);
-        let m = Model::uniform(&mesh, solid, ModelOptions::default()).unwrap();
-        let n = m.node_count();
-        let (mut base, mut at) = (vec![0.0; n], vec![0.0; n]);
-        m.dr_masses_into(0.8, &mut base);
-        m.dr_masses_at_into(0.8, &vec![Vector3::zeros(); n], &mut at);
-        assert_eq!(base, at);
-        // The top pushed down by 0.45 with a strain growing to 90 % there: the upper tets flatten.
-        let u: Vec<Vector3<f64>> =
-            mesh.nodes.iter().map(|p| Vector3::new(0.0, 0.0, -0.45 * p.z * p.z)).collect();
-        m.dr_masses_at_into(0.8, &u, &mut at);
-        let mut moved = mesh.clone();
-        moved.nodes.iter_mut().zip(&u).for_each(|(p, d)| *p += d);
-        let md = Model::uniform(&moved, solid, ModelOptions::default()).unwrap();
-        let mut expected = vec![0.0; n];
-        for (e, v) in m.elements.iter() {
-            let b = m.stiffness_bound[e].max(md.stiffness_bound[e]);
-            for &a in v.nodes {
-                expected[a as usize] += b / (4.0 * 0.64);
+    fn dr_masses_at_a_deformed_state_take_each_elements_stiffer_shape() {
+        for tets in [true, false] {
+            let solid =
+                Solid { material: Material::neo_hookean(3000.0, 0.45).unwrap(), density: 1.0 };
+            let mesh = bs_mesh::structured::box_mesh(2, 1.0, tets);
+            let m = Model::uniform(&mesh, solid, ModelOptions::default()).unwrap();
+            let n = m.node_count();
+            let (mut base, mut at) = (vec![0.0; n], vec![0.0; n]);
+            m.dr_masses_into(0.8, &mut base);
+            m.dr_masses_at_into(0.8, &vec![Vector3::zeros(); n], &mut at);
+            assert_eq!(base, at);
+            // The top pushed down by 0.45 with a strain growing to 90 % there: the upper tets flatten.
+            let u: Vec<Vector3<f64>> =
+                mesh.nodes.iter().map(|p| Vector3::new(0.0, 0.0, -0.45 * p.z * p.z)).collect();
+            m.dr_masses_at_into(0.8, &u, &mut at);
+            let mut moved = mesh.clone();
+            moved.nodes.iter_mut().zip(&u).for_each(|(p, d)| *p += d);
+            let md = Model::uniform(&moved, solid, ModelOptions::default()).unwrap();
+            let mut expected = vec![0.0; n];
+            for (e, v) in m.elements.iter() {
+                let b = m.stiffness_bound[e].max(md.stiffness_bound[e]);
+                for &a in v.nodes {
+                    expected[a as usize] += b / (4.0 * 0.64);
+                }
             }
+            for (a, (x, y)) in at.iter().zip(&expected).enumerate() {
+                assert!((x - y).abs() <= 1e-12 * y, "node {a}: {x} vs {y}");
+            }
+            let most = at.iter().zip(&base).map(|(x, y)| x / y).fold(0.0, f64::max);
+            assert!(most > 1.2, "the flat elements are stiffer (tets: {tets}): {most}");
         }
-        for (a, (x, y)) in at.iter().zip(&expected).enumerate() {
-            assert!((x - y).abs() <= 1e-12 * y, "node {a}: {x} vs {y}");
+    }
+
+    /// The closed-form largest eigenvalue against nalgebra's iterative one, on random
+    /// symmetric matrices and on the degenerate cases (a multiple of the identity, a double
+    /// eigenvalue, a singular matrix).
+    #[test]
+    fn largest_eigenvalue_matches_the_iterative_one() {
+        use nalgebra::Matrix3;
+        let mut rng = bs_mesh::rng::SplitMix64::new(11);
+        let mut cases: Vec<Matrix3<f64>> = (0..200)
+            .map(|_| {
+                let a = Matrix3::from_fn(|_, _| rng.uniform() * 2.0 - 1.0);
+                a + a.transpose()
+            })
+            .collect();
+        cases.push(Matrix3::identity() * 3.0);
+        cases.push(Matrix3::from_diagonal(&nalgebra::Vector3::new(2.0, 2.0, -1.0)));
+        cases.push(Matrix3::from_diagonal(&nalgebra::Vector3::new(0.0, 0.0, 5.0)));
+        for a in cases {
+            let want = a.symmetric_eigenvalues().max();
+            let got = super::largest_eigenvalue(&a);
+            assert!((got - want).abs() <= 1e-12 * a.norm().max(1.0), "{a}: {got} vs {want}");
         }
-        let most = at.iter().zip(&base).map(|(x, y)| x / y).fold(0.0, f64::max);
-        assert!(most > 1.2, "the flat tets are stiffer: {most}");
     }
 }

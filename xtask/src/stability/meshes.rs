@@ -1,6 +1,7 @@
 //! The paper's ellipsoid pushed 10–40 mm on every mesh of fixtures/ellipsoid (coarse,
-//! medium, fine and the mesh refined under the craniotomy rim) with Newton–Krylov, and the
-//! 40 mm push on the rim mesh with Dynamic Relaxation: how far each mesh carries the load.
+//! medium, fine, the mesh refined under the craniotomy rim and the hexahedral one) with
+//! Newton–Krylov, and the 40 mm push on the rim and hexahedral meshes with Dynamic
+//! Relaxation: how far each mesh carries the load.
 //! A run that stops says how far it got, in mm.
 
 use std::collections::BTreeSet;
@@ -21,14 +22,18 @@ const SCENE_LOAD: f64 = 10.0;
 pub const LOADS: [f64; 4] = [10.0, 20.0, 30.0, 40.0];
 
 /// (name, scene) of every mesh.
-pub const MESHES: [(&str, &str); 4] = [
+pub const MESHES: [(&str, &str); 5] = [
     ("coarse", "scene.toml"),
     ("medium", "scene-medium.toml"),
     ("fine", "scene-fine.toml"),
     ("rim", "scene-rim.toml"),
+    ("hex", "scene-hex.toml"),
 ];
 
-/// DR load ramps (steps) of the rim-mesh row, as in the coarse mesh's DR rows.
+/// (name, scene) of the meshes with a DR row at 40 mm.
+pub const DR_MESHES: [(&str, &str); 2] = [("rim", "scene-rim.toml"), ("hex", "scene-hex.toml")];
+
+/// DR load ramps (steps) of the 40 mm rows, as in the coarse mesh's DR rows.
 pub const RAMPS: [usize; 3] = [200, 800, 2000];
 
 fn ellipsoid(scene: &str) -> Result<Prepared, String> {
@@ -80,10 +85,10 @@ pub fn by_mesh(cells: &mut Vec<Cell>, name: &str, scene: &str) -> Result<(), Str
     Ok(())
 }
 
-/// DR on the rim mesh at 40 mm, with the coarse rows' three load ramps.
-pub fn dr_on_rim(cells: &mut Vec<Cell>) -> Result<(), String> {
-    let p = ellipsoid("scene-rim.toml")?;
-    let row = "ellipsoid 40 mm on the rim mesh, DR";
+/// DR on one mesh at 40 mm, with the coarse rows' three load ramps.
+pub fn dr_at_40mm(cells: &mut Vec<Cell>, name: &str, scene: &str) -> Result<(), String> {
+    let p = ellipsoid(scene)?;
+    let row = format!("ellipsoid 40 mm on the {name} mesh, DR");
     let load = LOADS[3];
     for ramp in RAMPS {
         let v = Variant {
@@ -94,7 +99,7 @@ pub fn dr_on_rim(cells: &mut Vec<Cell>) -> Result<(), String> {
         };
         let m = measure(&v, &p);
         let note = in_contact(&m);
-        cells.push(measured_cell(row, format!("ramp {ramp} steps"), &m, Some(load), note));
+        cells.push(measured_cell(&row, format!("ramp {ramp} steps"), &m, Some(load), note));
     }
     Ok(())
 }

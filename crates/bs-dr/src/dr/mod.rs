@@ -8,8 +8,12 @@
 //!
 //! * Masses are fictitious ([`Model::dr_masses_into`]): element `e` gets the mass that makes
 //!   its own critical step `h / step_fraction`, so every node has the same stable step (from
-//!   a deformed start state, the stiffer of each tet's reference and current shapes:
-//!   [`Model::dr_masses_at_into`]).
+//!   a deformed start state, the stiffer of each element's reference and current shapes:
+//!   [`Model::dr_masses_at_into`]). As elements flatten or shear their critical steps
+//!   shrink: every ten steps, once a node has moved a tenth of the smallest element length
+//!   since the last time, the masses are raised where the current shapes need it
+//!   ([`Model::dr_masses_stiffened_into`]; never lowered). Without this a deep push (the
+//!   paper's 40 mm ellipsoid) turns unstable or inverts an element late in the ramp.
 //! * The convergence rate `ρ = (κ − 1)/(κ + 1)`, `κ = 2/(ω_min h)`, comes from a
 //!   Rayleigh-quotient estimate of the lowest eigenvalue of `M⁻¹K` taken from snapshots every
 //!   `snapshot_interval` steps after the ramp: `ω²_min ≈ |Δuᵀ Δf| / (Δuᵀ M Δu)` over free
@@ -54,6 +58,15 @@ use crate::loads::{Loads, ramp};
 use crate::model::Model;
 use crate::solver::{Progress, Solution, SolveError, Solver, load_scale};
 
+/// Steps between checks whether the element masses need refreshing at the current shapes.
+const REFRESH_INTERVAL: usize = 10;
+
+/// The masses are refreshed once some node has moved this fraction of the smallest element
+/// length (`min_e V_e^(1/3)`) since the last refresh: an element's stiffness bound grows at
+/// most about `1/(1 − 0.1)² ≈ 1.23×` in between, inside the `1/0.8² ≈ 1.56×` margin of the
+/// default step fraction.
+const REFRESH_MOVE: f64 = 0.1;
+
 /// The adaptive Dynamic Relaxation solver.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct DynamicRelaxation {
@@ -72,6 +85,8 @@ struct Setup {
     /// Start and final values of the constrained DOFs (the ramp goes from one to the other).
     fixed_start: Vec<f64>,
     fixed_value: Vec<f64>,
+    /// `min_e V_e^(1/3)`, the length that schedules the mass refreshes.
+    smallest_length: f64,
 }
 
 impl Setup {
@@ -83,7 +98,17 @@ impl Setup {
         let fixed_value = fixed.iter().map(|&d| loads.value(d / 3, d % 3)).collect();
         let fixed_start = fixed.iter().map(|&d| start[d / 3][d % 3]).collect();
         let element_masses = masses.clone();
-        Setup { element_masses, masses, inv_m, free, fixed, fixed_start, fixed_value }
+        let smallest_length = model.smallest_element_length();
+        Setup {
+            element_masses,
+            masses,
+            inv_m,
+            free,
+            fixed,
+            fixed_start,
+            fixed_value,
+            smallest_length,
+        }
     }
 
     /// The measurements linearised at `u` into `springs`, and the masses raised where the
@@ -108,6 +133,27 @@ impl Setup {
             if m > self.masses[a] {
                 self.masses[a] = m;
                 self.inv_m[a] = 1.0 / m;
+            }
+        }
+    }
+
+    /// The element masses raised where the elements' shapes at `s.u` need more (a
+    /// flattened or sheared element's critical step is shorter than its reference one),
+    /// once a node has moved [`REFRESH_MOVE`] of the smallest element length since the last
+    /// refresh; never lowered, the measurements' share kept.
+    fn refresh(&mut self, model: &Model, s: &mut State, step_fraction: f64) {
+        let moved = s.u.iter().zip(&s.refreshed).map(|(a, b)| (a - b).norm_squared());
+        if moved.fold(0.0, f64::max).sqrt() < REFRESH_MOVE * self.smallest_length {
+            return;
+        }
+        s.refreshed.copy_from_slice(&s.u);
+        model.dr_masses_stiffened_into(step_fraction, &s.u, &mut s.fresh);
+        for (a, &m) in s.fresh.iter().enumerate() {
+            let more = m - self.element_masses[a];
+            if more > 0.0 {
+                self.element_masses[a] = m;
+                self.masses[a] += more;
+                self.inv_m[a] = 1.0 / self.masses[a];
             }
         }
     }
@@ -141,6 +187,10 @@ struct State {
     /// The measurements' springs and their per-node stiffness bounds.
     springs: Springs,
     bound: Vec<f64>,
+    /// The element masses at the current shapes (scratch of [`Setup::refresh`]) and the
+    /// displacements they were last computed at.
+    fresh: Vec<f64>,
+    refreshed: Vec<Vector3<f64>>,
 }
 
 impl State {
@@ -155,6 +205,8 @@ impl State {
             ws: model.workspace(),
             springs: Springs::new(),
             bound: vec![0.0; model.node_count()],
+            fresh: vec![0.0; model.node_count()],
+            refreshed: start.to_vec(),
         }
     }
 
@@ -246,6 +298,20 @@ impl DynamicRelaxation {
         data: &mut dyn DataTerm,
         observer: &mut dyn FnMut(&Progress),
     ) -> Result<Solution<DrInfo>, DrError> {
+        self.solve_watched(model, start, loads, contact, data, &mut |p, _| observer(p))
+    }
+
+    /// [`solve_fit`](Self::solve_fit) whose observer also sees the displacements after each
+    /// step (what a trace of the path records: kinetic energy, element shapes).
+    pub fn solve_watched(
+        &self,
+        model: &Model,
+        start: &[Vector3<f64>],
+        loads: &Loads,
+        contact: &mut dyn Contact,
+        data: &mut dyn DataTerm,
+        observer: &mut dyn FnMut(&Progress, &[Vector3<f64>]),
+    ) -> Result<Solution<DrInfo>, DrError> {
         let p = self.params;
         p.validate()?;
         let n = model.node_count();
@@ -268,6 +334,9 @@ impl DynamicRelaxation {
         let from_rest = start.iter().all(|v| *v == Vector3::zeros());
         let (mut maxd, mut below, mut err) = (0.0f64, 0usize, f64::INFINITY);
         for step in 1..=p.max_steps {
+            if step > 1 && (step - 1) % REFRESH_INTERVAL == 0 {
+                setup.refresh(model, &mut s, p.step_fraction);
+            }
             if fitting && (step - 1) % p.snapshot_interval == 0 {
                 setup.linearise(model, &mut s, p.step_fraction, data);
             }
@@ -290,16 +359,19 @@ impl DynamicRelaxation {
             maxd = change.maxd;
             s.advance();
             err = rayleigh.error_estimate(step, maxd);
-            observer(&Progress {
-                step,
-                err,
-                rho,
-                load_factor: load,
-                max_displacement: change.maxu,
-                contact: contact_report,
-                linear_iterations: 0,
-                force_evaluations: step,
-            });
+            observer(
+                &Progress {
+                    step,
+                    err,
+                    rho,
+                    load_factor: load,
+                    max_displacement: change.maxu,
+                    contact: contact_report,
+                    linear_iterations: 0,
+                    force_evaluations: step,
+                },
+                &s.u,
+            );
             below = if err < tol { below + 1 } else { 0 };
             if below >= p.consecutive {
                 let info = DrInfo {

@@ -16,6 +16,13 @@ fn global_omega_max(model: &Model, loads: &Loads) -> f64 {
     let n = model.node_count();
     let mut m = vec![0.0; n];
     model.dr_masses_into(1.0, &mut m);
+    omega_max_at(model, loads, &m, &vec![Vector3::zeros(); n])
+}
+
+/// ω_max of M⁻¹K over the free DOFs for the masses `m`, K the tangent at the displacements
+/// `u0` (central differences of the internal forces), by power iteration.
+fn omega_max_at(model: &Model, loads: &Loads, m: &[f64], u0: &[Vector3<f64>]) -> f64 {
+    let n = model.node_count();
     let mut ws = model.workspace();
     let mut fp = vec![Vector3::zeros(); n];
     let mut fm = fp.clone();
@@ -36,8 +43,8 @@ fn global_omega_max(model: &Model, loads: &Loads) -> f64 {
         let norm = v.iter().map(|x| x.norm_squared()).sum::<f64>().sqrt();
         v.iter_mut().for_each(|x| *x /= norm);
         let eps = 1e-7;
-        let up: Vec<_> = v.iter().map(|x| x * eps).collect();
-        let um: Vec<_> = v.iter().map(|x| -x * eps).collect();
+        let up: Vec<_> = v.iter().zip(u0).map(|(x, u)| u + x * eps).collect();
+        let um: Vec<_> = v.iter().zip(u0).map(|(x, u)| u - x * eps).collect();
         model.internal_forces_into(&up, &mut ws, &mut fp).unwrap();
         model.internal_forces_into(&um, &mut ws, &mut fm).unwrap();
         let (mut vkv, mut vmv) = (0.0, 0.0);
@@ -81,6 +88,42 @@ fn element_bound_is_conservative_and_sharp() {
     // unsafe (> 2) or uselessly loose (< 1, more than 2× too small a step).
     assert!(omega <= 2.0 * (1.0 + 1e-6), "global ω_max = {omega} exceeds the element bound 2");
     assert!(omega > 1.0, "element bound too pessimistic: global ω_max = {omega}");
+}
+
+/// A hex block flattened to 30 % of its height (sides stretched to keep its volume): its
+/// elements' critical steps shrink, so the reference masses put the step above critical,
+/// and the masses of `dr_masses_stiffened_into` (what DR refreshes to during a run) keep it
+/// below, with step_fraction 1 (critical at ω = 2) and with the default 0.8 (ω = 1.6).
+#[test]
+fn masses_at_a_flattened_shape_keep_the_step_below_critical() {
+    let (mesh, model) =
+        cube_model(Tech::H8, 3, 1.0, 0.2, Material::neo_hookean(3000.0, 0.45).unwrap());
+    let mut loads = Loads::new(mesh.nodes.len());
+    for (i, p) in mesh.nodes.iter().enumerate() {
+        if p.z.abs() < 1e-12 {
+            loads.fix_node(i).unwrap();
+        }
+    }
+    let h: f64 = 0.3;
+    let side = 1.0 / h.sqrt();
+    let u: Vec<Vector3<f64>> = mesh
+        .nodes
+        .iter()
+        .map(|p| Vector3::new((side - 1.0) * p.x, (side - 1.0) * p.y, (h - 1.0) * p.z))
+        .collect();
+    let n = model.node_count();
+    let (mut reference, mut stiffened) = (vec![0.0; n], vec![0.0; n]);
+    model.dr_masses_into(1.0, &mut reference);
+    model.dr_masses_stiffened_into(1.0, &u, &mut stiffened);
+    let before = omega_max_at(&model, &loads, &reference, &u);
+    let after = omega_max_at(&model, &loads, &stiffened, &u);
+    assert!(before > 2.0, "the flattened block should be unstable with reference masses: {before}");
+    assert!(after <= 2.0, "stiffened masses leave ω_max = {after} above 2");
+    // Not uselessly heavy either: within 2× of critical (the bound's usual slack, see above).
+    assert!(after > 1.0, "stiffened masses too heavy: ω_max = {after}");
+    // At rest they are the reference masses.
+    model.dr_masses_stiffened_into(1.0, &vec![Vector3::zeros(); n], &mut stiffened);
+    assert_eq!(stiffened, reference);
 }
 
 #[test]
