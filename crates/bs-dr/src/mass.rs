@@ -120,29 +120,32 @@ impl Model {
         bound
     }
 
-    /// The masses of [`dr_masses_into`](Self::dr_masses_into) with each element's bound
+    /// The masses of [`dr_masses_into`](Self::dr_masses_into) with each hexahedron's bound
     /// scaled by how much stiffer its shape at `X + u` is,
     /// `max(1, J λ_max(F⁻ᵀ S F⁻¹) / λ_max(S))` with `S = Σ_a g_a g_aᵀ` of the reference
     /// gradients: the ratio of `V λ_max(Σ_a g_a g_aᵀ)` at the current and the reference shape,
     /// which the element's largest eigenvalue follows as it flattens (`1/h²` for a
     /// thickness `h`; 1 for a rotation). A few hundred flops per element, for refreshing
-    /// the masses during a run ([`DynamicRelaxation`](crate::DynamicRelaxation) does every
-    /// ten steps); an inverted element keeps its reference bound.
+    /// the masses during a run ([`DynamicRelaxation`](crate::DynamicRelaxation)); an
+    /// inverted element keeps its reference bound.
+    ///
+    /// Tetrahedra keep their reference bounds. A T4ANP tet's volume is resisted through the
+    /// nodal averages, not by its own bulk stiffness, so its own shape overstates how stiff
+    /// it grows as it flattens, and the heavier nodes lag behind the load: scaling the tets
+    /// too made DR invert elements of an indented block (24 mm) and of a block at
+    /// ν = 0.4999 that it carries with the reference masses (docs/decisions.md).
     pub fn dr_masses_stiffened_into(
         &self,
         step_fraction: f64,
         u: &[Vector3<f64>],
         masses: &mut [f64],
     ) {
-        let mut bound = vec![0.0; self.element_count()];
-        let scaled: Vec<(usize, f64)> = self
-            .elements
-            .par_iter()
-            .with_min_len(1024)
-            .map(|(e, v)| (e, self.stiffness_bound[e] * shape_stiffening(&v, u)))
-            .collect();
-        for (e, b) in scaled {
-            bound[e] = b;
+        let mut bound = self.stiffness_bound.clone();
+        let (hexes, hex_elem) = (&self.elements.hexes, &self.elements.hex_elem);
+        let scaled: Vec<f64> =
+            hexes.par_iter().with_min_len(256).map(|h| shape_stiffening(&h.view(), u)).collect();
+        for (&e, r) in hex_elem.iter().zip(scaled) {
+            bound[e as usize] *= r;
         }
         self.masses_from_bounds(step_fraction, &bound, masses);
     }

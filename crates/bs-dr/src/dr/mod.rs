@@ -11,9 +11,11 @@
 //!   a deformed start state, the stiffer of each element's reference and current shapes:
 //!   [`Model::dr_masses_at_into`]). As elements flatten or shear their critical steps
 //!   shrink: every ten steps, once a node has moved a tenth of the smallest element length
-//!   since the last time, the masses are raised where the current shapes need it
-//!   ([`Model::dr_masses_stiffened_into`]; never lowered). Without this a deep push (the
-//!   paper's 40 mm ellipsoid) turns unstable or inverts an element late in the ramp.
+//!   since the last time, a node whose mass no longer covers its hexahedra's current shapes
+//!   at the critical step is raised to what they need at the step fraction
+//!   ([`Model::dr_masses_stiffened_into`]; never lowered; tetrahedra keep their masses).
+//!   Without this the paper's 40 mm push of a hexahedral ellipsoid turns unstable or
+//!   inverts an element during the ramp.
 //! * The convergence rate `ρ = (κ − 1)/(κ + 1)`, `κ = 2/(ω_min h)`, comes from a
 //!   Rayleigh-quotient estimate of the lowest eigenvalue of `M⁻¹K` taken from snapshots every
 //!   `snapshot_interval` steps after the ramp: `ω²_min ≈ |Δuᵀ Δf| / (Δuᵀ M Δu)` over free
@@ -66,6 +68,11 @@ const REFRESH_INTERVAL: usize = 10;
 /// most about `1/(1 − 0.1)² ≈ 1.23×` in between, inside the `1/0.8² ≈ 1.56×` margin of the
 /// default step fraction.
 const REFRESH_MOVE: f64 = 0.1;
+
+/// How much an element's stiffness bound may grow between refreshes (`1/(1 − 0.1)²`
+/// rounded up): a node is raised once its mass would not cover that growth at the critical
+/// step.
+const REFRESH_GROWTH: f64 = 1.25;
 
 /// The adaptive Dynamic Relaxation solver.
 #[derive(Debug, Clone, Copy, Default)]
@@ -140,19 +147,27 @@ impl Setup {
     /// The element masses raised where the elements' shapes at `s.u` need more (a
     /// flattened or sheared element's critical step is shorter than its reference one),
     /// once a node has moved [`REFRESH_MOVE`] of the smallest element length since the last
-    /// refresh; never lowered, the measurements' share kept.
+    /// refresh. A node is raised only once its mass would not cover the current shapes'
+    /// need at the critical step itself (step fraction 1) grown by [`REFRESH_GROWTH`], and
+    /// then to what they need at the run's step fraction: heavier nodes lag behind the
+    /// ramp (measured: raising every node whose shapes stiffened made DR invert elements of
+    /// an indented block it carried before), so masses grow only where the step would
+    /// otherwise turn unstable before the next refresh. Never lowered; the measurements' share kept.
     fn refresh(&mut self, model: &Model, s: &mut State, step_fraction: f64) {
+        if model.elements.hexes.is_empty() {
+            return; // only hexahedra's masses are refreshed (see `dr_masses_stiffened_into`)
+        }
         let moved = s.u.iter().zip(&s.refreshed).map(|(a, b)| (a - b).norm_squared());
         if moved.fold(0.0, f64::max).sqrt() < REFRESH_MOVE * self.smallest_length {
             return;
         }
         s.refreshed.copy_from_slice(&s.u);
         model.dr_masses_stiffened_into(step_fraction, &s.u, &mut s.fresh);
+        let at_risk = REFRESH_GROWTH * step_fraction * step_fraction;
         for (a, &m) in s.fresh.iter().enumerate() {
-            let more = m - self.element_masses[a];
-            if more > 0.0 {
+            if m * at_risk > self.element_masses[a] {
+                self.masses[a] += m - self.element_masses[a];
                 self.element_masses[a] = m;
-                self.masses[a] += more;
                 self.inv_m[a] = 1.0 / self.masses[a];
             }
         }
