@@ -8,8 +8,10 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-/// Computes brain shift with a Total Lagrangian explicit finite-element model solved by
-/// Dynamic Relaxation, with kinematic brain–skull contact.
+/// Computes brain shift with a Total Lagrangian finite-element model (Newton–Krylov by
+/// default, or the paper's Dynamic Relaxation) and kinematic brain–skull contact. Each
+/// command's one-line summary is its first doc paragraph (`brainshift --help`); the rest
+/// is its `brainshift CMD --help`.
 #[derive(Debug, Parser)]
 #[command(name = "brainshift", version, about, long_about = None)]
 struct Cli {
@@ -19,6 +21,8 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Print what a mesh file holds: counts, sets, quality, surface.
+    ///
     /// Reads a mesh file and prints what it holds: counts, sets, bounding box, element
     /// quality, surface closedness and orientation. Exits non-zero if the mesh is unusable.
     ///
@@ -31,6 +35,8 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Validate a scene and the files it names, without solving.
+    ///
     /// Validates a scene file and everything it refers to without running it: mesh validity,
     /// element and node sets, materials, boundary conditions, unit sanity and the skull
     /// surface (closed, manifold, outward). Exits non-zero naming the first problem.
@@ -43,6 +49,8 @@ enum Command {
         #[arg(long)]
         region_effect: bool,
     },
+    /// Solve a scene and write its result (VTU, VTK, CSV, JSON).
+    ///
     /// Computes the brain shift of a scene and writes DIR/result.vtu (displacement,
     /// in_contact; von Mises stress and J per element), DIR/displacements.csv and
     /// DIR/report.json. Without SCENE it runs the bundled real-anatomy demo.
@@ -59,6 +67,8 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
+    /// Solve the bundled MNI152 brain and warp its T1 image.
+    ///
     /// Runs the bundled real-anatomy scene (MNI152 brain in its skull, craniotomy pushed in)
     /// and applies the result to the MNI152 T1 template: DIR/warped_t1.nii.gz (the template
     /// in the intra-operative configuration), DIR/field.nii.gz (the displacement field) and
@@ -72,6 +82,8 @@ enum Command {
         #[arg(long)]
         from_image: bool,
     },
+    /// Mesh a labelmap into a brain model, a skull cavity and a scene.
+    ///
     /// Builds a model from a segmentation: a quality tetrahedral (or hexahedral) brain
     /// mesh of a labelmap with an element set per region, a skull cavity around it and a
     /// scene. Writes DIR/brain.vtu, DIR/brain.inp, DIR/skull.off and DIR/scene.toml and
@@ -107,6 +119,8 @@ enum Command {
         #[arg(long)]
         craniotomy: bool,
     },
+    /// Warp a pre-operative image into a result's intra-operative state.
+    ///
     /// Resamples the pre-operative image into the intra-operative configuration of a run's
     /// result: each voxel centre y inside the deformed brain gets the pre-operative value at
     /// the reference point X(y) (exact inverse of the piecewise-linear FE map; trilinear, or
@@ -143,6 +157,8 @@ enum Command {
         )]
         preview_at: Option<Vec<f64>>,
     },
+    /// Write a result as an ITK displacement field on an image's grid.
+    ///
     /// Writes a run's result as an ITK displacement field on an image's grid:
     /// d(y) = X(y) - y inside the deformed brain, extended harmonically to zero at the skull,
     /// zero beyond. Loaded into 3D Slicer or ITK as a transform and applied to the
@@ -159,6 +175,8 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Brain–skull gap of a mesh's boundary nodes or of points, as CSV.
+    ///
     /// Brain–skull gap of every boundary node of a mesh (or of points): one CSV row per node
     /// `id,signed_distance,closest_x,closest_y,closest_z,outside` (positive = inside the
     /// skull). Exits 1 if any node is outside the skull.
@@ -179,6 +197,8 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Serve live updates over OpenIGTLink (3D Slicer, PLUS).
+    ///
     /// Serves brain-shift updates over OpenIGTLink (3D Slicer's OpenIGTLinkIF, PLUS,
     /// navigation systems): prepares a live session of SCENE and reads IMAGE once, then
     /// answers each measurement (POLYDATA IntraopSurface, POINT PreopLandmarks +
@@ -188,6 +208,8 @@ enum Command {
     /// brainshift.serve`; BRAINSHIFT_PYTHON names another interpreter), which needs `pip
     /// install ./crates/bs-py pyigtl`.
     Serve(serve::ServeOptions),
+    /// Parameter sweeps: plan, run, collect, emit a Slurm job.
+    ///
     /// Parameter sweeps: plan one scene per row from a sweep file, run rows (anywhere, in
     /// any order, idempotently), collect one table, or emit a Slurm array job.
     #[command(subcommand)]
@@ -196,6 +218,8 @@ enum Command {
 
 #[derive(Debug, Subcommand)]
 enum SweepCommand {
+    /// Expand a sweep file into one scene per row.
+    ///
     /// Expands SWEEP.toml (base scene, [[axis]] keys with values or range + samples, grid or
     /// Latin hypercube) into DIR/manifest.csv, DIR/manifest.json and DIR/scenes/I.toml.
     Plan {
@@ -205,6 +229,8 @@ enum SweepCommand {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Run one row of a sweep.
+    ///
     /// Runs row I into DIR/runs/I/ (the files `run` writes). A row already done is skipped;
     /// a failed row writes DIR/runs/I/error.json and exits non-zero.
     Run {
@@ -220,6 +246,8 @@ enum SweepCommand {
         #[arg(long)]
         quiet: bool,
     },
+    /// Collect every row's outcome into one table.
+    ///
     /// Writes DIR/summary.csv: every row's parameters, status (ok/failed/missing), error,
     /// max displacement, displacement at named points, nodes in contact and solve time.
     Collect {
@@ -229,6 +257,8 @@ enum SweepCommand {
         #[arg(long)]
         points: Option<PathBuf>,
     },
+    /// Write a Slurm array job with one task per row.
+    ///
     /// Writes DIR/sweep.slurm: a Slurm array job with one task per row, memory from the
     /// scene's estimate (as `check` prints it).
     EmitSlurm {

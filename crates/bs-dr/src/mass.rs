@@ -126,7 +126,7 @@ impl Model {
     /// gradients: the ratio of `V λ_max(Σ_a g_a g_aᵀ)` at the current and the reference shape,
     /// which the element's largest eigenvalue follows as it flattens (`1/h²` for a
     /// thickness `h`; 1 for a rotation). A few hundred flops per element, for refreshing
-    /// the masses during a run ([`DynamicRelaxation`](crate::DynamicRelaxation)); an
+    /// the masses during a run (Dynamic Relaxation does); an
     /// inverted element keeps its reference bound.
     ///
     /// Tetrahedra keep their reference bounds. A T4ANP tet's volume is resisted through the
