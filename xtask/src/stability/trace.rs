@@ -16,6 +16,7 @@ use bs_scene::scene::SolverKind;
 use bs_scene::study::Variant;
 
 /// What the command was asked.
+#[derive(Debug)]
 struct Args {
     scene: PathBuf,
     /// The push to trace, mm (the scene's prescribed displacements scaled to it).
@@ -62,6 +63,7 @@ struct Row {
 }
 
 /// The trace and DR's state where the push first reached `at`.
+#[derive(Debug)]
 struct Traced {
     rows: Vec<Row>,
     state_at: Option<Vec<Vector3<f64>>>,
@@ -171,4 +173,35 @@ pub fn main(args: &[String]) -> Result<(), String> {
         Err(e) => println!("at {at} mm: Newton-Krylov did not converge: {e:?}"),
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(s: &str) -> Vec<String> {
+        s.split_whitespace().map(String::from).collect()
+    }
+
+    #[test]
+    fn options_are_read_and_bad_ones_refused_by_name() {
+        let a = parse(&args("s.toml --load 40 --ramp 800 --every 0 --at 35 --out t.csv")).unwrap();
+        assert_eq!(a.scene, PathBuf::from("s.toml"));
+        assert_eq!((a.load, a.ramp, a.every, a.at), (Some(40.0), Some(800), 1, Some(35.0)));
+        assert_eq!(a.out, Some(PathBuf::from("t.csv")));
+        assert!(parse(&args("s.toml --speed 2")).unwrap_err().contains("--speed"));
+        assert!(parse(&args("s.toml --load forty")).unwrap_err().contains("forty"));
+        assert!(parse(&args("s.toml --at")).unwrap_err().contains("--at needs a value"));
+        assert!(parse(&[]).unwrap_err().starts_with("usage"));
+    }
+
+    #[test]
+    fn the_csv_has_one_row_per_traced_step() {
+        let r = Row { step: 7, push: 1.5, kinetic: 2.0, max_step: 0.25, min_j: 0.5 };
+        let text = csv(&[r, Row { step: 8, ..r }]);
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines[0], "step,push_mm,kinetic_energy,max_step_mm,min_J");
+        assert_eq!(lines[1], "7,1.500000,2.000000e0,2.500000e-1,0.500000");
+        assert_eq!(lines.len(), 3);
+    }
 }
