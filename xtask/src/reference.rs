@@ -136,6 +136,26 @@ pub const CASES: &[Case] = &[
         contact: true,
         sliding: Sliding::Small { increment: 0.0125 },
     },
+    // Gravity, the craniotomy's push and the tumour's resection, with the outer boundary
+    // held beyond 50 mm of the craniotomy instead of the skull: a brain that cannot hang
+    // from its brain stem, which ccx carries (scene-held.toml); and at full weight without
+    // the fluid (scene-held-dry.toml), where both load every element alike.
+    Case {
+        name: "mni152-regions",
+        scene: "scene-held.toml",
+        stem: "ccx-held",
+        slopes: &[0.0],
+        contact: false,
+        sliding: Sliding::Finite,
+    },
+    Case {
+        name: "mni152-regions",
+        scene: "scene-held-dry.toml",
+        stem: "ccx-held-dry",
+        slopes: &[0.0],
+        contact: false,
+        sliding: Sliding::Finite,
+    },
     Case {
         name: "ellipsoid",
         scene: "scene-40mm.toml",

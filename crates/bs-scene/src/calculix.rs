@@ -9,7 +9,7 @@ use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
-use bs_mesh::{ElementKind, Point3, Vector3};
+use bs_mesh::{ElementKind, Point3, TriSurface, Vector3};
 
 use crate::prepare::Prepared;
 use crate::scene::MaterialModel;
@@ -53,7 +53,17 @@ impl Deck {
 
     /// [`Deck::new`] with the contact pairing of `sliding`.
     pub fn with_sliding(p: &Prepared, k: Option<f64>, sliding: Sliding) -> Result<Deck, String> {
-        let skull = p.skull.as_ref().ok_or("the scene has no skull: nothing to compare")?;
+        if let Some(r) =
+            p.scene.regions.iter().find(|r| r.cavity_pressure.is_some_and(|q| q != 0.0))
+        {
+            return Err(format!(
+                "region {}: a cavity pressure is not written into CalculiX decks",
+                r.elset
+            ));
+        }
+        if k.is_some() && p.skull.is_none() {
+            return Err("the scene has no skull: no contact to compare".into());
+        }
         let (tets, hexes) = p.mesh.count_by_kind();
         if hexes > 0 || tets == 0 {
             return Err("CalculiX references are written for tetrahedral meshes (C3D4)".into());
@@ -70,7 +80,9 @@ impl Deck {
         for (i, x) in p.mesh.nodes.iter().enumerate() {
             let _ = writeln!(brain, "{}, {:.12e}, {:.12e}, {:.12e}", nid(i), x.x, x.y, x.z);
         }
-        for r in 0..p.scene.regions.len() {
+        // A resected region has no element left: no element set, no section.
+        let kept = |r: usize| p.region_of_element.contains(&r);
+        for r in (0..p.scene.regions.len()).filter(|&r| kept(r)) {
             let _ = writeln!(brain, "*ELEMENT, TYPE=C3D4, ELSET=REGION{r}");
             for (e, el) in p.mesh.elements.iter().enumerate() {
                 if p.region_of_element[e] == r {
@@ -94,66 +106,37 @@ impl Deck {
         // Skull wedges: ids above every brain id.
         let node_base = p.mesh.node_ids.iter().max().copied().unwrap_or(0) + 1;
         let elem_base = p.mesh.element_ids.iter().max().copied().unwrap_or(0) + 1;
-        let bbox = skull.bounding_box().ok_or("empty skull")?;
-        let thickness = 0.02 * (bbox.1 - bbox.0).norm();
-        let nv = skull.vertices.len() as u64;
-        let mut sk = String::from("*NODE, NSET=NSKULL\n");
-        for (v, x) in skull.vertices.iter().enumerate() {
-            let _ =
-                writeln!(sk, "{}, {:.12e}, {:.12e}, {:.12e}", node_base + v as u64, x.x, x.y, x.z);
-        }
-        // Each wedge is a right prism over its triangle with its own top nodes (offset along
-        // the face normal), so no wedge can invert where the skull is concave; the bottom
-        // nodes are shared, so the master surface is the skull itself.
-        for (t, tri) in skull.triangles.iter().enumerate() {
-            let offset = skull.area_normal(t).normalize() * thickness;
-            for (j, &v) in tri.iter().enumerate() {
-                let y: Point3<f64> = skull.vertices[v] + offset;
-                let id = node_base + nv + 3 * t as u64 + j as u64;
-                let _ = writeln!(sk, "{id}, {:.12e}, {:.12e}, {:.12e}", y.x, y.y, y.z);
-            }
-        }
-        // Bottom face 1-2-3 = the skull triangle, whose right-hand normal points outward,
-        // towards the top face 4-5-6: a positive-volume C3D6 whose face S1 faces the brain.
-        sk.push_str("*ELEMENT, TYPE=C3D6, ELSET=SKULL\n");
-        for (t, tri) in skull.triangles.iter().enumerate() {
-            let [a, b, c] = tri.map(|v| node_base + v as u64);
-            let top = node_base + nv + 3 * t as u64;
-            let _ = writeln!(
-                sk,
-                "{}, {a}, {b}, {c}, {}, {}, {}",
-                elem_base + t as u64,
-                top,
-                top + 1,
-                top + 2
-            );
-        }
-        sk.push_str("*SURFACE, NAME=MASTER\n");
-        for t in 0..skull.triangles.len() {
-            let _ = writeln!(sk, "{}, S1", elem_base + t as u64);
-        }
+        let sk = match &p.skull {
+            Some(skull) => skull_wedges(skull, node_base, elem_base)?,
+            None => String::new(),
+        };
 
         let mut c = String::new();
         let _ = writeln!(
             c,
             "** brainshift reference deck (cargo xtask reference): CalculiX 2.20.\n\
-             ** brain.inp and skull.inp are written next to it by the same command.\n\
+             ** brain.inp (and skull.inp, with a skull) are written next to it by the same command.\n\
              ** Units: length {}, force N, stress N/{}^2.\n\
              *HEADING\nbrainshift reference, {}",
             p.scene.units.symbol(),
             p.scene.units.symbol(),
             k.map_or("no contact".to_string(), |k| format!("penalty slope K = {k}"))
         );
-        c.push_str("*INCLUDE, INPUT=brain.inp\n*INCLUDE, INPUT=skull.inp\n");
-        for (r, region) in p.scene.regions.iter().enumerate() {
+        c.push_str("*INCLUDE, INPUT=brain.inp\n");
+        if !sk.is_empty() {
+            c.push_str("*INCLUDE, INPUT=skull.inp\n");
+        }
+        for (r, region) in p.scene.regions.iter().enumerate().filter(|&(r, _)| kept(r)) {
             let weighed = p.scene.gravity.is_some();
             let _ = writeln!(c, "{}", material_card(r, region, stress, weighed)?);
         }
         // The wedges are fixed: their material only has to make a valid section.
-        c.push_str(
-            "*MATERIAL, NAME=RIGID\n*ELASTIC\n1000.0, 0.3\n*SOLID SECTION, ELSET=SKULL, \
-             MATERIAL=RIGID\n",
-        );
+        if !sk.is_empty() {
+            c.push_str(
+                "*MATERIAL, NAME=RIGID\n*ELASTIC\n1000.0, 0.3\n*SOLID SECTION, ELSET=SKULL, \
+                 MATERIAL=RIGID\n",
+            );
+        }
         if let Some(k) = k {
             let _ = writeln!(
                 c,
@@ -164,7 +147,10 @@ impl Deck {
                 if matches!(sliding, Sliding::Small { .. }) { ", SMALL SLIDING" } else { "" }
             );
         }
-        c.push_str("*BOUNDARY\nNSKULL, 1, 3\n");
+        c.push_str("*BOUNDARY\n");
+        if !sk.is_empty() {
+            c.push_str("NSKULL, 1, 3\n");
+        }
         for (i, comps) in p.prescribed.iter().enumerate() {
             for (d, v) in comps.iter().enumerate() {
                 if *v == Some(0.0) {
@@ -192,16 +178,62 @@ impl Deck {
         Ok(Deck { control: c, brain, skull: sk })
     }
 
-    /// Writes `job.inp`, `brain.inp` and `skull.inp` into `dir`.
+    /// Writes `job.inp`, `brain.inp` and `skull.inp` (when the scene has a skull) into `dir`.
     pub fn write(&self, dir: &Path) -> Result<(), String> {
         for (name, text) in
             [("job.inp", &self.control), ("brain.inp", &self.brain), ("skull.inp", &self.skull)]
         {
+            if text.is_empty() {
+                continue; // no skull
+            }
             let path = dir.join(name);
             std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
         }
         Ok(())
     }
+}
+
+/// The rigid skull as one layer of C3D6 wedges outside `skull` (`skull.inp`: node set
+/// NSKULL, element set SKULL, master surface MASTER), node and element ids from the bases.
+fn skull_wedges(skull: &TriSurface, node_base: u64, elem_base: u64) -> Result<String, String> {
+    let bbox = skull.bounding_box().ok_or("empty skull")?;
+    let thickness = 0.02 * (bbox.1 - bbox.0).norm();
+    let nv = skull.vertices.len() as u64;
+    let mut sk = String::from("*NODE, NSET=NSKULL\n");
+    for (v, x) in skull.vertices.iter().enumerate() {
+        let _ = writeln!(sk, "{}, {:.12e}, {:.12e}, {:.12e}", node_base + v as u64, x.x, x.y, x.z);
+    }
+    // Each wedge is a right prism over its triangle with its own top nodes (offset along
+    // the face normal), so no wedge can invert where the skull is concave; the bottom
+    // nodes are shared, so the master surface is the skull itself.
+    for (t, tri) in skull.triangles.iter().enumerate() {
+        let offset = skull.area_normal(t).normalize() * thickness;
+        for (j, &v) in tri.iter().enumerate() {
+            let y: Point3<f64> = skull.vertices[v] + offset;
+            let id = node_base + nv + 3 * t as u64 + j as u64;
+            let _ = writeln!(sk, "{id}, {:.12e}, {:.12e}, {:.12e}", y.x, y.y, y.z);
+        }
+    }
+    // Bottom face 1-2-3 = the skull triangle, whose right-hand normal points outward,
+    // towards the top face 4-5-6: a positive-volume C3D6 whose face S1 faces the brain.
+    sk.push_str("*ELEMENT, TYPE=C3D6, ELSET=SKULL\n");
+    for (t, tri) in skull.triangles.iter().enumerate() {
+        let [a, b, c] = tri.map(|v| node_base + v as u64);
+        let top = node_base + nv + 3 * t as u64;
+        let _ = writeln!(
+            sk,
+            "{}, {a}, {b}, {c}, {}, {}, {}",
+            elem_base + t as u64,
+            top,
+            top + 1,
+            top + 2
+        );
+    }
+    sk.push_str("*SURFACE, NAME=MASTER\n");
+    for t in 0..skull.triangles.len() {
+        let _ = writeln!(sk, "{}, S1", elem_base + t as u64);
+    }
+    Ok(sk)
 }
 
 /// The `*MATERIAL` and `*SOLID SECTION` cards of region `r` (`REGION{r}`), stresses scaled
@@ -263,7 +295,7 @@ fn gravity_cards(c: &mut String, p: &Prepared, g: &crate::scene::Gravity) -> Res
     let [nx, ny, nz] = unit;
     c.push_str("*DLOAD\n");
     let Some(f) = &g.fluid else {
-        for r in 0..p.scene.regions.len() {
+        for r in (0..p.scene.regions.len()).filter(|r| p.region_of_element.contains(r)) {
             let _ = writeln!(c, "REGION{r}, GRAV, {scale:.12e}, {nx:.12e}, {ny:.12e}, {nz:.12e}");
         }
         return Ok(());
