@@ -63,7 +63,7 @@ pub fn demo_images(out: &Path) -> Result<ExitCode, Box<dyn std::error::Error>> {
         &t1,
         out,
         &out.join("warped_t1.nii.gz"),
-        false,
+        None,
         (Some(&out.join("preview.png")), None),
     )?;
     crate::field::run(&t1, out, &out.join("field.nii.gz"))?;

@@ -141,6 +141,10 @@ enum Command {
         /// The image is a labelmap: nearest-voxel sampling, written as labels.
         #[arg(long)]
         labels: bool,
+        /// With --labels: the label a resection's cavity (fluid) takes in the warped
+        /// labelmap (default 0, background).
+        #[arg(long, value_name = "LABEL", requires = "labels")]
+        cavity_label: Option<u32>,
         /// Also draw a PNG: three orthogonal slices through the largest displacement
         /// (pre-operative, warped, and |displacement| in mm with the deformed brain's
         /// outline and a colour bar).
@@ -323,7 +327,8 @@ fn main() -> ExitCode {
             cavity,
             craniotomy,
         }),
-        Command::Warp { image, result, out, labels, preview, preview_at } => {
+        Command::Warp { image, result, out, labels, cavity_label, preview, preview_at } => {
+            let labels = labels.then(|| cavity_label.unwrap_or(0));
             warp::run(&image, &result, &out, labels, (preview.as_deref(), preview_at.as_deref()))
         }
         Command::Field { reference, result, out } => {

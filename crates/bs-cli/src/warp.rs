@@ -14,7 +14,7 @@ pub fn run(
     image: &Path,
     result: &Path,
     out: &Path,
-    labels: bool,
+    labels: Option<u32>,
     (preview, at): (Option<&Path>, Option<&[f64]>),
 ) -> Result<ExitCode, Box<dyn std::error::Error>> {
     let at = match at {
@@ -36,7 +36,8 @@ pub fn run(
     }
     let summary =
         bs_scene::registration::warp_file(result, image, out, labels, preview.map(|_| at))?;
-    print_summary("warped", &summary, if labels { "nearest label" } else { "trilinear" });
+    let sampling = if labels.is_some() { "nearest label" } else { "trilinear" };
+    print_summary("warped", &summary, sampling);
     if let (Some(path), Some(planes)) = (preview, &summary.planes) {
         draw_preview(path, image, planes)?;
         crate::emit(&format!("wrote {} (preview)\n", path.display()));

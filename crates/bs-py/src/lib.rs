@@ -594,20 +594,22 @@ impl RunResult {
     /// `brainshift.Image` already read) warped into this result's configuration, as
     /// `brainshift warp` computes it: `(array, affine)`, the array (nx, ny, nz) on the
     /// image's grid (float32; uint32 labels with `labels=True`, nearest voxel, from a path
-    /// only), `affine` the 4×4 voxel-index-to-RAS (mm) matrix.
-    #[pyo3(signature = (image, labels=false))]
+    /// only; a resection's cavity takes `cavity_label`, default 0), `affine` the 4×4
+    /// voxel-index-to-RAS (mm) matrix.
+    #[pyo3(signature = (image, labels=false, cavity_label=0))]
     fn warp<'py>(
         &self,
         py: Python<'py>,
         image: &Bound<'py, PyAny>,
         labels: bool,
+        cavity_label: u32,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyArray2<f64>>)> {
         let result = self.registration(py)?;
         let image = ImageArg::of(image)?;
         let v = match (&image, labels) {
             (ImageArg::File(p), true) => {
                 let v = py
-                    .detach(|| bs_scene::registration::warp_labels_volume(&result, p))
+                    .detach(|| bs_scene::registration::warp_labels_volume(&result, p, cavity_label))
                     .map_err(|e| scene_err(py, e))?;
                 let a = affine(py, v.grid.voxel_to_world());
                 return Ok((volume_array(py, v.grid.dims(), v.data, 1)?, a));

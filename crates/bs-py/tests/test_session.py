@@ -173,3 +173,11 @@ def test_a_tumour_resected_in_a_session_agrees_with_the_cli_run_of_the_resected_
     t1 = fixtures / "mni152" / "t1.nii.gz"
     warped, _ = r.warp(t1)
     assert nibabel.load(t1).get_fdata()[86, 97, 122] > 100 and warped[86, 97, 122] == 0.0
+    # The warped labelmap: the tumour's label 5 there becomes background, or the label named
+    # for the cavity; nothing else changes.
+    labels = fixtures / "mni152-regions" / "labels.nii.gz"
+    plain, _ = r.warp(labels, labels=True)
+    named, _ = r.warp(labels, labels=True, cavity_label=6)
+    assert plain[86, 97, 122] == 0 and named[86, 97, 122] == 6
+    changed = plain != named
+    assert changed.any() and (plain[changed] == 0).all() and (named[changed] == 6).all()

@@ -624,8 +624,9 @@ impl InverseMap {
     /// space between the deformed brain and the skull) a label of the brain is never used:
     /// a label is the brain's when most of its voxels lie inside the pre-operative mesh,
     /// and a gap voxel whose X(y) falls on one takes the nearest label at X(y) that is not
-    /// (within [`GAP_SEARCH_VOXELS`] voxels), else 0 (background).
-    pub fn warp_labels(&self, labels: &Volume<u32>, keep: &[u32]) -> Vec<u32> {
+    /// (within [`GAP_SEARCH_VOXELS`] voxels), else 0 (background). A resection's cavity
+    /// (fluid) takes the label `cavity` (0: background).
+    pub fn warp_labels(&self, labels: &Volume<u32>, keep: &[u32], cavity: u32) -> Vec<u32> {
         let maps = self.location.affine_maps(&self.reference, labels.grid.world_to_voxel());
         let mut out = self
             .location
@@ -637,8 +638,8 @@ impl InverseMap {
                 Some(bs_image::sample::nearest_excluding(labels, x, &brain, GAP_SEARCH_VOXELS))
             });
         }
-        // A resection's cavity is fluid: label 0.
-        self.enclosed.iter().for_each(|&n| out[n as usize] = 0);
+        // A resection's cavity is fluid: the label named for it.
+        self.enclosed.iter().for_each(|&n| out[n as usize] = cavity);
         out
     }
 
@@ -781,15 +782,16 @@ fn output_error(e: bs_image::ImageError, out: &Path) -> SceneError {
 /// `brainshift warp`: resamples the pre-operative image `image` (NIfTI or NRRD) into the
 /// intra-operative configuration of the result in `result_dir` and writes it to `out`
 /// (`.nii`, `.nii.gz` or `.nrrd`) on the same grid (and, NIfTI to NIfTI, the same header);
-/// a labelmap with nearest-voxel sampling when `labels`. Nothing is written when an input
-/// is bad.
+/// a labelmap with nearest-voxel sampling when `labels` is `Some(cavity)`, a resection's
+/// cavity taking the label `cavity` (0: background). Nothing is written when an input is
+/// bad.
 /// With `planes`, the summary carries the three planes through the largest displacement, or
 /// through the world point (RAS mm) it names (for a preview picture).
 pub fn warp_file(
     result_dir: &Path,
     image: &Path,
     out: &Path,
-    labels: bool,
+    labels: Option<u32>,
     planes: Option<Option<[f64; 3]>>,
 ) -> Result<Summary, SceneError> {
     let focus = planes.flatten();
@@ -797,7 +799,7 @@ pub fn warp_file(
     bs_image::formats::require_image_output(out).map_err(|e| output_error(e, out))?;
     let started = Instant::now();
     let result = RunResult::load(result_dir)?;
-    if labels {
+    if let Some(cavity) = labels {
         let (volume, header) = bs_image::formats::read_labels(image).map_err(image_error)?;
         let read_seconds = started.elapsed().as_secs_f64();
         resample_and_write(
@@ -806,7 +808,7 @@ pub fn warp_file(
             image,
             out,
             read_seconds,
-            InverseMap::warp_labels,
+            |map, v, keep| map.warp_labels(v, keep, cavity),
             |v| bs_image::formats::write_labels(out, v, header.as_ref()),
             planes.then_some((|v: &u32| *v as f32, focus)),
         )
@@ -923,11 +925,16 @@ pub fn warp_loaded(
     Ok(Volume { grid: volume.grid.clone(), data })
 }
 
-/// [`warp_volume`] for a labelmap (nearest voxel; a gap voxel never takes a brain label).
-pub fn warp_labels_volume(result: &RunResult, image: &Path) -> Result<Volume<u32>, SceneError> {
+/// [`warp_volume`] for a labelmap (nearest voxel; a gap voxel never takes a brain label; a
+/// resection's cavity takes `cavity`).
+pub fn warp_labels_volume(
+    result: &RunResult,
+    image: &Path,
+    cavity: u32,
+) -> Result<Volume<u32>, SceneError> {
     let (volume, _) = bs_image::formats::read_labels(image).map_err(image_error)?;
     let map = InverseMap::new(result, &volume.grid, Space::Ras, image)?;
-    let data = map.warp_labels(&volume, &volume.data);
+    let data = map.warp_labels(&volume, &volume.data, cavity);
     Ok(Volume { grid: volume.grid, data })
 }
 

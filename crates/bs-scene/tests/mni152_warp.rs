@@ -97,12 +97,12 @@ fn the_demo_warp_keeps_the_bone_moves_no_brain_label_outside_and_matches_the_nod
             })
             .count()
     };
-    let new = map.warp_labels(&labels, &labels.data);
+    let new = map.warp_labels(&labels, &labels.data, 0);
     assert_eq!(count_outside(&new, &map), 0);
     let identity =
         InverseMap::with_outside(&result, &g, Space::Ras, Path::new("t1"), OutsideChoice::Identity)
             .unwrap();
-    let old = identity.warp_labels(&labels, &labels.data);
+    let old = identity.warp_labels(&labels, &labels.data, 0);
     let ghost = count_outside(&old, &identity);
     assert!(ghost > 10_000, "the identity left {ghost} brain-label voxels outside the brain");
 

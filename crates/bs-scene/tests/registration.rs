@@ -313,7 +313,7 @@ fn a_result_in_lps_or_metres_is_converted_to_the_image_frame() {
     let mut outs = Vec::new();
     for case in ["ras", "lps", "m"] {
         let out = d.join(format!("warped-{case}.nii.gz"));
-        let s = warp_file(&d.join(case), &preop, &out, false, None).unwrap();
+        let s = warp_file(&d.join(case), &preop, &out, None, None).unwrap();
         assert!(s.inside > 20_000);
         outs.push(bs_image::nifti::read_image(&out).unwrap().volume.data);
     }
@@ -352,7 +352,7 @@ fn labels_are_warped_by_nearest_voxel() {
     let b = Vector3::new(3.0, 0.0, 0.0);
     write_rundir(&d.join("run"), &mesh, &vec![b; mesh.nodes.len()], "RAS", "mm");
     let out = d.join("warped-labels.nii.gz");
-    warp_file(&d.join("run"), &path, &out, true, None).unwrap();
+    warp_file(&d.join("run"), &path, &out, Some(0), None).unwrap();
     let warped = bs_image::nifti::read_labels(&out).unwrap();
     let map = InverseMap::new(
         &RunResult::load(&d.join("run")).unwrap(),
@@ -392,7 +392,7 @@ fn bad_inputs_are_clear_errors_and_write_nothing() {
         *p += Vector3::new(200.0, 0.0, 0.0);
     }
     write_rundir(&d.join("far"), &far, &u, "LPS", "mm");
-    let e = warp_file(&d.join("far"), &preop, &out, false, None).unwrap_err();
+    let e = warp_file(&d.join("far"), &preop, &out, None, None).unwrap_err();
     let msg = e.to_string();
     assert!(matches!(e, SceneError::Image { .. }), "{msg}");
     for part in ["LPS", "RAS", "0 of 125 nodes", "image (RAS world frame)", "space ="] {
@@ -401,20 +401,20 @@ fn bad_inputs_are_clear_errors_and_write_nothing() {
 
     // A 4-D image: bs-image refuses it and names the file.
     let four_d = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/images/bad-4d.nii.gz");
-    let e = warp_file(&d.join("run"), &four_d, &out, false, None).unwrap_err();
+    let e = warp_file(&d.join("run"), &four_d, &out, None, None).unwrap_err();
     assert!(e.to_string().contains("bad-4d.nii.gz"), "{e}");
 
     // Not a result directory.
-    let e = warp_file(&d, &preop, &out, false, None).unwrap_err();
+    let e = warp_file(&d, &preop, &out, None, None).unwrap_err();
     assert!(matches!(e, SceneError::Result { .. }) && e.to_string().contains("result.vtu"), "{e}");
 
     // A report with an unknown frame.
     write_rundir(&d.join("frame"), &mesh, &u, "RAI", "mm");
-    let e = warp_file(&d.join("frame"), &preop, &out, false, None).unwrap_err();
+    let e = warp_file(&d.join("frame"), &preop, &out, None, None).unwrap_err();
     assert!(e.to_string().contains("\"RAI\""), "{e}");
 
     // Output names the formats cannot hold.
-    let e = warp_file(&d.join("run"), &preop, &d.join("out.mha"), false, None).unwrap_err();
+    let e = warp_file(&d.join("run"), &preop, &d.join("out.mha"), None, None).unwrap_err();
     assert!(e.to_string().contains(".nii"), "{e}");
     let e = field_file(&d.join("run"), &preop, &d.join("field.vtk")).unwrap_err();
     assert!(e.to_string().contains(".mha"), "{e}");
@@ -451,7 +451,7 @@ fn simpleitk_applying_the_exported_fields_gives_the_warp() {
     let fx = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/registration");
     let d = tmp("sitk");
     let out = d.join("warped.nii.gz");
-    warp_file(&fx.join("run"), &fx.join("preop.nii.gz"), &out, false, None).unwrap();
+    warp_file(&fx.join("run"), &fx.join("preop.nii.gz"), &out, None, None).unwrap();
     let ours = bs_image::nifti::read_image(&out).unwrap().volume;
     let preop = bs_image::nifti::read_image(&fx.join("preop.nii.gz")).unwrap().volume;
     let result = RunResult::load(&fx.join("run")).unwrap();

@@ -232,7 +232,7 @@ fn the_warped_image_shows_the_cavity_as_the_fluid_around_the_brain() {
     };
     bs_image::nifti::write_labels(&d.join("labels.nii"), &labels, None).unwrap();
     let out = d.join("warped.nii");
-    bs_scene::registration::warp_file(&d.join("run"), &d.join("preop.nii"), &out, false, None)
+    bs_scene::registration::warp_file(&d.join("run"), &d.join("preop.nii"), &out, None, None)
         .unwrap();
     let (warped, _) = bs_image::formats::read_image(&out).unwrap();
     // The cavity's centre (the push moved it about 2 mm down) reads the fluid, not the
@@ -244,9 +244,18 @@ fn the_warped_image_shows_the_cavity_as_the_fluid_around_the_brain() {
     assert_eq!(warped.data[at(20.0, 20.0, 18.0)], 7.0);
     assert_eq!(warped.data[at(20.0, 20.0, 6.0)], 100.0);
     let out = d.join("labels-warped.nii");
-    bs_scene::registration::warp_file(&d.join("run"), &d.join("labels.nii"), &out, true, None)
+    bs_scene::registration::warp_file(&d.join("run"), &d.join("labels.nii"), &out, Some(0), None)
         .unwrap();
     let (warped, _) = bs_image::formats::read_labels(&out).unwrap();
     assert_eq!(warped.data[at(20.0, 20.0, 18.0)], 0);
     assert_eq!(warped.data[at(20.0, 20.0, 6.0)], 5);
+    // A cavity label named: the cavity takes it, every other voxel is as before.
+    let named = d.join("labels-cavity.nii");
+    bs_scene::registration::warp_file(&d.join("run"), &d.join("labels.nii"), &named, Some(9), None)
+        .unwrap();
+    let (relabelled, _) = bs_image::formats::read_labels(&named).unwrap();
+    assert_eq!(relabelled.data[at(20.0, 20.0, 18.0)], 9);
+    let changed = (0..grid.len()).filter(|&n| relabelled.data[n] != warped.data[n]);
+    assert!(changed.clone().count() > 0);
+    assert!(changed.clone().all(|n| warped.data[n] == 0 && relabelled.data[n] == 9));
 }
