@@ -82,11 +82,12 @@ pub fn confined_stretch(material: &Material, p: f64) -> Option<f64> {
 }
 
 /// A column `0 ≤ Z ≤ height` confined laterally (rollers on its sides, so every section
-/// deforms as `F = diag(1, 1, λ(Z))`), held at `Z = 0`, free at the top, under a body force
-/// per unit reference volume `weight(Z)` pointing to −Z (its own weight, less a fluid's
-/// buoyancy where it is submerged): the axial displacements `u(Z)` at the heights `z`.
+/// deforms as `F = diag(1, 1, λ(Z))`), held at `Z = 0`, under a body force per unit
+/// reference volume `weight(Z)` pointing to −Z (its own weight, less a fluid's buoyancy
+/// where it is submerged) and the axial first Piola–Kirchhoff stress `top` at its top (0: a
+/// free top; negative: pressed down): the axial displacements `u(Z)` at the heights `z`.
 ///
-/// Equilibrium of the part above `Z`: `P₃₃(Z) = −∫_Z^H weight`, so `λ(Z)` is
+/// Equilibrium of the part above `Z`: `P₃₃(Z) = top − ∫_Z^H weight`, so `λ(Z)` is
 /// [`confined_stretch`] of it and `u(Z) = ∫_0^Z (λ − 1)`. Both integrals by the trapezoid
 /// rule on 2¹⁴ intervals (a jump of `weight` on a grid point, such as a fluid level at a
 /// dyadic fraction of the height, is integrated exactly; the second integral's error is of
@@ -96,13 +97,14 @@ pub fn confined_column_displacement(
     material: &Material,
     height: f64,
     weight: &dyn Fn(f64) -> f64,
+    top: f64,
     z: &[f64],
 ) -> Option<Vec<f64>> {
     let n = 1 << 14;
     let dz = height / n as f64;
     // The weight of each interval taken at its midpoint (exact for piecewise constants
     // jumping on grid points).
-    let mut p = vec![0.0; n + 1];
+    let mut p = vec![top; n + 1];
     for i in (0..n).rev() {
         p[i] = p[i + 1] - weight((i as f64 + 0.5) * dz) * dz;
     }
@@ -186,7 +188,7 @@ mod tests {
         let m = Material::neo_hookean(3000.0, 0.45).unwrap();
         let big_m = m.elastic().p_wave_modulus();
         let (w, h) = (1e-3, 50.0);
-        let u = confined_column_displacement(&m, h, &|_| w, &[h, h / 2.0]).unwrap();
+        let u = confined_column_displacement(&m, h, &|_| w, 0.0, &[h, h / 2.0]).unwrap();
         let linear = -w * h * h / (2.0 * big_m);
         assert!((u[0] - linear).abs() < 1e-3 * linear.abs(), "{} vs {linear}", u[0]);
         // At mid-height: −w (H Z − Z²/2) / M.
@@ -195,6 +197,9 @@ mod tests {
         // The stretch inverts the stress law.
         let l = confined_stretch(&m, -500.0).unwrap();
         assert!((confined_axial_pk1(&m, l).unwrap() + 500.0).abs() < 1e-9);
+        // Weightless, pressed at the top: homogeneous, u = (λ − 1) Z.
+        let u = confined_column_displacement(&m, h, &|_| 0.0, -500.0, &[h, h / 2.0]).unwrap();
+        assert!((u[0] - (l - 1.0) * h).abs() < 1e-9 && (u[1] - (l - 1.0) * h / 2.0).abs() < 1e-9);
     }
 
     /// Small strain: l − 1 = −ν(λ − 1) to first order, with ν = (3κ − 2μ)/(2(3κ + μ)).

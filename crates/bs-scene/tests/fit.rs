@@ -306,6 +306,88 @@ fn dynamic_relaxation_fits_the_same_answer() {
     assert!(worst < 1e-4, "DR and Newton-Krylov differ by {worst:e} mm");
 }
 
+/// Gravity is the prior a scan corrects. The laterally confined column of `fixtures/column`
+/// (80 mm, T4ANP, 16 layers, dry) settles 2.85 mm under its own weight; a scan of its top
+/// 2 mm below the reference top says it settled less. The fit holds the top up with a
+/// uniform traction `t = κ (Z_top − z_scan)` per reference area (κ the data stiffness the
+/// report gives; the plane is exact), so every section carries the weight above it plus
+/// that traction: `P₃₃(Z) = −κ (H + u(H) − z_scan) − w (H − Z)`, whose closed form
+/// (`confined_column_displacement` with that stress at the top, `t` found by bisection)
+/// the answer must meet. Tolerance: the element's own error under gravity alone on this
+/// mesh (measured here, about 4e-3 of the settlement, `cargo xtask validate`'s column
+/// rows), doubled, plus the solver's.
+#[test]
+fn gravity_is_the_prior_a_scan_of_the_top_corrects() {
+    use bs_material::closed_form::confined_column_displacement;
+    let dir = tmp("column");
+    let (height, scan_z) = (80.0, 78.0);
+    let mut pts = String::from("x,y,z\n");
+    for j in 0..=40 {
+        for i in 0..=40 {
+            pts += &format!("{},{},{scan_z}\n", i - 10, j - 10);
+        }
+    }
+    std::fs::write(dir.join("scan.csv"), pts).unwrap();
+    let mesh = root().join("fixtures/column/column-t4-16.inp");
+    let scene = format!(
+        "units = \"mm\"\n[mesh]\nfile = \"{}\"\nelement = \"t4anp\"\n[[region]]\nelset = \"*\"\n\
+         material = {{ model = \"neo-hookean\", youngs_modulus = 3000.0, poisson_ratio = 0.45, \
+         density = 1040.0 }}\n[[boundary]]\nnset = \"XSIDES\"\nfix = [\"x\"]\n[[boundary]]\n\
+         nset = \"YSIDES\"\nfix = [\"y\"]\n[[boundary]]\nnset = \"BASE\"\nfix = [\"z\"]\n\
+         [gravity]\ndirection = [0.0, 0.0, -1.0]\nacceleration = 9.81\n[solver]\ntolerance = 1e-8\n",
+        mesh.display()
+    );
+    let measured = "[[measurement]]\npoints = \"scan.csv\"\nnset = \"TOP\"\nsigma = 0.1\n";
+    let path = dir.join("scene.toml");
+    let solve = |text: &str| {
+        std::fs::write(&path, text).unwrap();
+        let mut run = Run::prepare(Prepared::load(&path).unwrap()).unwrap();
+        let solved = run.solve(&mut |_| {}).unwrap();
+        let kappa = solved.measurements.first().map(|m| m.stiffness);
+        (run.prepared, solved.solution.displacements, kappa)
+    };
+    let (p, prior, _) = solve(&scene);
+    let (_, fitted, kappa) = solve(&format!("{scene}{measured}"));
+    let kappa = kappa.unwrap();
+    let law = bs_scene::compose::material(&p.scene.regions[0].material).unwrap();
+    let w = 1040.0 * 9.81e-3; // N/m³ = Pa/m → Pa/mm
+    let z: Vec<f64> = p.mesh.nodes.iter().map(|x| x.z).collect();
+    let column = |top: f64| confined_column_displacement(&law, height, &|_| w, top, &z).unwrap();
+    let worst = |u: &[Vector3<f64>], exact: &[f64]| {
+        u.iter()
+            .zip(exact)
+            .map(|(u, e)| (u.z - e).abs().max(u.x.abs()).max(u.y.abs()))
+            .fold(0.0, f64::max)
+    };
+    // The element's own error under gravity alone.
+    let free = column(0.0);
+    let settlement = -free.iter().copied().fold(0.0, f64::min);
+    let element_error = worst(&prior, &free);
+    assert!(settlement > 2.8 && element_error < 5e-3 * settlement, "{settlement} {element_error}");
+    // The top's stress t with t = −κ (H + u(H; t) − z_scan): bisection (u(H) falls as t rises).
+    let top_u =
+        |t: f64| confined_column_displacement(&law, height, &|_| w, t, &[height]).unwrap()[0];
+    let gap = |t: f64| t + kappa * (height + top_u(t) - scan_z);
+    let (mut lo, mut hi) = (0.0, 1000.0);
+    assert!(gap(lo) < 0.0 && gap(hi) > 0.0);
+    for _ in 0..100 {
+        let mid = 0.5 * (lo + hi);
+        if gap(mid) < 0.0 { lo = mid } else { hi = mid }
+    }
+    let exact = column(0.5 * (lo + hi));
+    let err = worst(&fitted, &exact);
+    assert!(
+        err < 2.0 * element_error + 1e-6,
+        "fit vs closed form {err:e} mm (element {element_error:e})"
+    );
+    // The data moved the answer far beyond that: the top sits near the scan, not where
+    // gravity alone put it.
+    let top = (0..z.len()).max_by(|&a, &b| z[a].total_cmp(&z[b])).unwrap();
+    assert!((height + fitted[top].z - scan_z).abs() < 0.05, "top at {}", height + fitted[top].z);
+    let moved = worst(&fitted, &free);
+    assert!(moved > 20.0 * err, "the data moved the answer {moved} mm, the error is {err:e} mm");
+}
+
 /// The box held at its bottom, with its top (ZMAX) as a landmark measurement's control set
 /// and `extra` appended (the landmarks' table or a boundary on the top).
 fn held_box(dir: &Path, extra: &str) -> PathBuf {

@@ -68,7 +68,7 @@ fn error(mesh: &Mesh, u: &[Vector3<f64>], submerged: bool) -> (f64, f64) {
         if submerged && z < HEIGHT / 2.0 { (RHO - RHO_FLUID) * G } else { RHO * G }
     };
     let z: Vec<f64> = mesh.nodes.iter().map(|p| p.z).collect();
-    let exact = confined_column_displacement(&material(), HEIGHT, &weight, &z).unwrap();
+    let exact = confined_column_displacement(&material(), HEIGHT, &weight, 0.0, &z).unwrap();
     let err = u.iter().zip(&exact).fold(0.0f64, |m, (v, e)| m.max((v.z - e).abs()));
     (err, -exact[z.iter().position(|&h| h == HEIGHT).unwrap()])
 }
