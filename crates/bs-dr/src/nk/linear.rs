@@ -71,6 +71,10 @@ pub(crate) struct Linearisation<'a> {
     pub springs: &'a [(usize, f64)],
     pub cons: &'a Constraints,
     pub tl: &'a TwoLevel,
+    /// Whether GMRES ends after a restart cycle that stalled: under a body force alone
+    /// (nothing prescribed moves), where a brain that floats before the skull holds it has
+    /// a nearly singular tangent and restarted GMRES stalls (docs/decisions.md).
+    pub stall_exit: bool,
 }
 
 /// Solves for `delta` to the relative residual `rtol` (at most `max_iterations` GMRES
@@ -140,7 +144,10 @@ pub(crate) fn solve(
         Some((split, mixed))
     });
     let info = match mixed_form {
-        None => b.gmres.solve(&mut op, &mut prec, &b.rhs, delta, rtol, max_iterations),
+        None => {
+            b.gmres.set_stall_exit(lin.stall_exit);
+            b.gmres.solve(&mut op, &mut prec, &b.rhs, delta, rtol, max_iterations)
+        }
         Some((split, mixed)) => {
             let tol = Tolerance { rtol, max_iterations };
             let info = mixed.solve(split, cons, &b.rhs, &mut op, tol, &mut prec_time);

@@ -115,6 +115,7 @@ pub(crate) fn direction(
         springs: &it.springs,
         cons: &it.cons,
         tl: pb.tl(),
+        stall_exit: pb.load == 0.0 && !pb.loads.forces().is_empty(),
     };
     let max = pb.params.max_linear_iterations;
     linear::solve(&lin, &mut it.linear, &mut it.ws, &mut it.delta, rtol, max, work)?;
