@@ -183,7 +183,9 @@ impl Session {
     /// `displacements={"SET": [dx, dy, dz]}` (uniform) or an (n, 3) array in the order of
     /// `set_nodes("SET")`; `surface={"SET": path or (points, triangles)}`;
     /// `landmarks={"SET": csv path or (pre, intra)}`: new values of prescribed boundaries
-    /// (boundaries not named keep their last values). `points={"SET": (m, 3) array}`: a new
+    /// (boundaries not named keep their last values); on the node set of a landmark
+    /// `[[measurement]]` (`landmark_sets()`), its new pairs, fitted from the reference state
+    /// with the session's preparation. `points={"SET": (m, 3) array}`: a new
     /// scan of the `[[measurement]]` on that node set, fitted from the reference state with
     /// the session's preparation (scene frame and units, before the scene's rigid
     /// correction; `measured_sets()` lists the keys); not in the same call as boundary
@@ -205,16 +207,27 @@ impl Session {
     ) -> PyResult<RunResult> {
         let loads = self.loads(py, displacements, surface, landmarks)?;
         let scans = self.scans(py, points)?;
-        if !scans.is_empty() && !loads.is_empty() {
+        // Landmarks on a landmark measurement's node set are fitted; on a boundary's, imposed.
+        let measured = self.landmark_sets();
+        let (fitted, loads): (Vec<_>, Vec<_>) = loads.into_iter().partition(|(name, load)| {
+            matches!(load, BoundaryLoad::Landmarks(_)) && measured.contains(name)
+        });
+        if [!scans.is_empty(), !fitted.is_empty(), !loads.is_empty()].iter().filter(|&&x| x).count()
+            > 1
+        {
             return Err(PyValueError::new_err(
-                "update: give new scans (points=) or new boundary values (displacements=, \
-                 surface=, landmarks=) in one call, not both; call update twice",
+                "update: give new scans (points=), new landmarks of a [[measurement]] \
+                 (landmarks= on its node set) or new boundary values (displacements=, \
+                 surface=, landmarks=) in one call, not two of them; call update twice",
             ));
         }
         self.solve_with(py, progress.as_ref(), |s, observe| {
             let turned = gravity.map(|g| s.set_gravity(g)).transpose()?;
             let solved = if !scans.is_empty() {
                 s.update_points(&scans, observe)
+            } else if let Some((name, BoundaryLoad::Landmarks(file))) = fitted.first() {
+                let files = bs_scene::scene::LandmarkFiles::Pairs(file.clone());
+                s.update_landmarks(name, files, observe)
             } else if loads.is_empty() {
                 s.solve(observe)
             } else {
@@ -272,6 +285,13 @@ impl Session {
     fn measured_sets(&self) -> Vec<String> {
         let s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
         s.measured_sets().into_iter().map(str::to_string).collect()
+    }
+
+    /// The node sets of the scene's landmark measurements: the keys of `update`'s
+    /// `landmarks` that are fitted (other keys name boundaries whose landmarks are imposed).
+    fn landmark_sets(&self) -> Vec<String> {
+        let s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+        s.landmark_sets().into_iter().map(str::to_string).collect()
     }
 
     /// The node sets of the scene's boundaries that prescribe displacements: the keys

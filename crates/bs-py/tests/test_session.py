@@ -111,8 +111,46 @@ def test_a_new_scan_is_fitted_warm(fixtures):
         session.update(points={"TOP": scan})
     with pytest.raises(BrainshiftError, match="none of its"):
         session.update(points={"CRANIOTOMY": scan * 1e-3})
-    with pytest.raises(ValueError, match="not both"):
+    with pytest.raises(ValueError, match="in one call, not two"):
         session.update(points={"CRANIOTOMY": scan}, displacements={"FIXED": [0.0, 0.0, 0.0]})
+
+
+def test_new_landmarks_of_a_measurement_are_fitted_as_the_cli_fits_them(fixtures, cli, tmp_path):
+    """A landmark [[measurement]] on the cube's top (ZMAX, fitted through it): new pairs
+    given to update(landmarks=...) on that node set are fitted from the reference state with
+    the session's preparation, as `brainshift run` fits a scene holding those pairs; on a
+    boundary's node set, landmarks stay imposed (the other tests)."""
+    rng = np.random.default_rng(7)
+    pre = 0.2 + 0.6 * rng.random((10, 3))
+    first = pre + np.outer(pre[:, 2], [0.0, 0.0, -0.05])
+    second = pre + np.outer(pre[:, 2], [0.02, 0.0, -0.08])
+
+    def scene(name, intra):
+        rows = "\n".join(",".join(repr(float(v)) for v in np.r_[a, b]) for a, b in zip(pre, intra))
+        (tmp_path / f"{name}.csv").write_text("x,y,z,x2,y2,z2\n" + rows + "\n")
+        mesh = str(fixtures / "basic" / "cube-t4.msh")
+        text = (
+            f'units = "mm"\n[mesh]\nfile = "{mesh}"\nelement = "t4"\n[[region]]\nelset = "*"\n'
+            'material = { model = "neo-hookean", youngs_modulus = 3000.0, poisson_ratio = 0.3 }\n'
+            '[[boundary]]\nnset = "ZMIN"\nfix = ["x", "y", "z"]\n'
+            f'[[measurement]]\nlandmarks = "{name}.csv"\nnset = "ZMAX"\nsigma = 0.001\n'
+            "[solver]\ntolerance = 1e-9\n"
+        )
+        path = tmp_path / f"{name}.toml"
+        path.write_text(text)
+        return path
+
+    session = Session(Scene.from_toml(scene("first", first)))
+    assert session.landmark_sets() == ["ZMAX"] and session.measured_sets() == []
+    session.update()
+    u_cli = cli_displacements(cli, scene("second", second), tmp_path / "second")
+    r = session.update(landmarks={"ZMAX": (pre, second)})
+    assert np.abs(r.displacements - u_cli).max() < 1e-8
+    assert r.report["measurements"][0]["kind"] == "landmarks"
+    again = session.update(landmarks={"ZMAX": tmp_path / "second.csv"})
+    assert np.abs(again.displacements - r.displacements).max() < 1e-12
+    with pytest.raises(ValueError, match="in one call, not two"):
+        session.update(landmarks={"ZMAX": (pre, first)}, displacements={"ZMIN": [0.0, 0.0, 0.0]})
 
 
 def test_gravity_turned_in_a_session_agrees_with_the_cli_run_of_that_direction(fixtures, cli, tmp_path):

@@ -524,3 +524,57 @@ fn a_new_scan_in_a_session_fits_as_a_cold_run_of_it() {
     assert!(e.to_string().contains("scanned node sets are: CRANIOTOMY"), "{e}");
     assert_eq!(session.displacements(), &before[..]);
 }
+
+/// New landmark pairs in a live session are fitted as a cold run of a scene with those
+/// pairs (the same fit from the same reference state); a landmark outside the brain and an
+/// unknown node set are refused naming them, the session keeping its last good state.
+#[test]
+fn new_landmarks_in_a_session_fit_as_a_cold_run_of_them() {
+    let dir = tmp("session-landmarks");
+    let push = |d: &str| format!("[[boundary]]\nnset = \"ZMAX\"\ndisplacement = {d}\n");
+    let truth = |d: &str| {
+        let path = held_box(&dir, &push(d));
+        let mut run = Run::prepare(Prepared::load(&path).unwrap()).unwrap();
+        let u = run.solve(&mut |_| {}).unwrap().solution.displacements;
+        (run.prepared.mesh.clone(), u)
+    };
+    let (mesh, first) = truth("[1.0, 0.0, -3.0]");
+    let (_, second) = truth("[0.0, -1.0, -4.0]");
+    std::fs::write(dir.join("pairs.csv"), landmark_pairs(&mesh, &first, None)).unwrap();
+    std::fs::write(dir.join("second.csv"), landmark_pairs(&mesh, &second, None)).unwrap();
+    let m =
+        |f: &str| format!("[[measurement]]\nlandmarks = \"{f}\"\nnset = \"ZMAX\"\nsigma = 0.01\n");
+    let cold_path = held_box(&dir, &m("second.csv"));
+    let mut cold = Run::prepare(Prepared::load(&cold_path).unwrap()).unwrap();
+    let cold = cold.solve(&mut |_| {}).unwrap();
+
+    let path = held_box(&dir, &m("pairs.csv"));
+    let mut session = bs_scene::Session::new(Prepared::load(&path).unwrap()).unwrap();
+    session.solve(&mut |_| {}).unwrap();
+    assert_eq!(session.landmark_sets(), ["ZMAX"]);
+    let files = |f: &str| bs_scene::scene::LandmarkFiles::Pairs(dir.join(f));
+    let warm = session.update_landmarks("ZMAX", files("second.csv"), &mut |_| {}).unwrap();
+    let worst = |a: &[Vector3<f64>], b: &[Vector3<f64>]| {
+        a.iter().zip(b).map(|(x, y)| (x - y).norm()).fold(0.0, f64::max)
+    };
+    let d = worst(&warm.solution.displacements, &cold.solution.displacements);
+    assert!(d < 1e-9, "a session's new landmarks against a cold run: {d} mm");
+    assert_eq!(warm.measurements[0].rms_residual, cold.measurements[0].rms_residual);
+    // The fit followed the second push (within 2 % of its 4.1 mm: the chord steps use the
+    // reference state's Jacobian), not the first.
+    let off = worst(&warm.solution.displacements, &second);
+    assert!(off < 0.02 * 17f64.sqrt(), "{off} mm from the second push");
+    assert!(worst(&warm.solution.displacements, &first) > 1.0);
+    let before = session.displacements().to_vec();
+    let e = session.update_landmarks("NOPE", files("second.csv"), &mut |_| {}).unwrap_err();
+    assert!(e.to_string().contains("landmark node sets are: ZMAX"), "{e}");
+    std::fs::write(
+        dir.join("outside.csv"),
+        "x,y,z,x2,y2,z2\n10,10,20,10,10,19\n60,10,20,60,10,19\n",
+    )
+    .unwrap();
+    let e = session.update_landmarks("ZMAX", files("outside.csv"), &mut |_| {}).unwrap_err();
+    assert!(e.to_string().contains("outside.csv: line 3"), "{e}");
+    assert_eq!(session.displacements(), &before[..]);
+    assert_eq!(session.landmark_pairs("ZMAX").unwrap().pre.len(), 12);
+}

@@ -102,12 +102,29 @@ fn read_landmarks(
     key: &str,
     files: LandmarkFiles,
 ) -> Result<MeasuredData, SceneError> {
+    let pairs = super::pairs::read_pairs(&files, scene.space).map_err(|message| {
+        SceneError::Read { scene: sp.to_path_buf(), key: key.to_string(), message }
+    })?;
+    let anchors = locate_landmarks(sp, scene, mesh, key, &files, &pairs)?;
+    Ok(MeasuredData::Landmarks { files, pairs, anchors })
+}
+
+/// Each pre-operative position of `pairs` (read from `files`) located in its tetrahedron:
+/// the element and its material point there; one more than [`LANDMARK_OUTSIDE_MM`] outside
+/// the mesh is an error naming its line or label.
+pub(crate) fn locate_landmarks(
+    sp: &Path,
+    scene: &Scene,
+    mesh: &Mesh,
+    key: &str,
+    files: &LandmarkFiles,
+    pairs: &super::pairs::Pairs,
+) -> Result<Vec<(usize, bs_fit::Anchor)>, SceneError> {
     let err = |message: String| SceneError::Read {
         scene: sp.to_path_buf(),
         key: key.to_string(),
         message,
     };
-    let pairs = super::pairs::read_pairs(&files, scene.space).map_err(err)?;
     let locator = bs_mesh::TetLocator::new(mesh)
         .map_err(|e| err(format!("landmarks are located in the mesh's tetrahedra: {e}")))?;
     let tolerance = LANDMARK_OUTSIDE_MM * 1e-3 / scene.units.metres();
@@ -115,11 +132,13 @@ fn read_landmarks(
     for (p, origin) in pairs.pre.iter().zip(&pairs.origin) {
         let at = locator.locate(p);
         if at.distance > tolerance {
-            let file = match &files {
+            let file = match files {
                 LandmarkFiles::Pairs(f) | LandmarkFiles::Split([f, _]) => f.display(),
             };
             return Err(err(format!(
-                "{file}: {origin}: the pre-operative landmark ({:.2}, {:.2}, {:.2}) lies {:.2}                  outside the brain mesh (at most {tolerance} is accepted): a landmark is a                  point of the brain; check its frame ({}) and units, or drop it",
+                "{file}: {origin}: the pre-operative landmark ({:.2}, {:.2}, {:.2}) lies {:.2} \
+                 outside the brain mesh (at most {tolerance} is accepted): a landmark is a \
+                 point of the brain; check its frame ({}) and units, or drop it",
                 p.x,
                 p.y,
                 p.z,
@@ -130,7 +149,7 @@ fn read_landmarks(
         let nodes = locator.element_nodes(at.element);
         anchors.push((at.element, bs_fit::Anchor { nodes, weights: at.weights }));
     }
-    Ok(MeasuredData::Landmarks { files, pairs, anchors })
+    Ok(anchors)
 }
 
 /// The nodes of a landmark measurement's set, whose displacement the fit finds: they must

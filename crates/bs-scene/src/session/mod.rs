@@ -24,6 +24,7 @@ use crate::verify::verify;
 
 mod gravity;
 mod history;
+mod landmarks;
 mod points;
 mod resect;
 
