@@ -7,7 +7,7 @@
 
 use bs_dr::Progress;
 
-use super::Session;
+use super::{MeasuredKind, Session};
 use crate::SceneError;
 use crate::measure::MeasuredData;
 use crate::measure::pairs::Pairs;
@@ -18,12 +18,7 @@ impl Session {
     /// The node sets of the scene's landmark measurements: the keys
     /// [`Session::update_landmarks`] takes.
     pub fn landmark_sets(&self) -> Vec<&str> {
-        let p = &self.run.prepared;
-        p.measurements
-            .iter()
-            .filter(|m| matches!(m.data, MeasuredData::Landmarks { .. }))
-            .map(|m| m.nset.as_str())
-            .collect()
+        self.sets_of(MeasuredKind::Landmarks)
     }
 
     /// Replaces the pairs of the landmark measurement on node set `name` by those read from
@@ -81,22 +76,6 @@ impl Session {
 
     /// The index of the landmark measurement on node set `name`.
     fn landmark_measurement(&self, name: &str) -> Result<usize, SceneError> {
-        let p = &self.run.prepared;
-        p.measurements
-            .iter()
-            .position(|m| m.nset == name && matches!(m.data, MeasuredData::Landmarks { .. }))
-            .ok_or_else(|| {
-                let known = self.landmark_sets();
-                SceneError::Set {
-                    scene: p.path.clone(),
-                    key: "update landmarks".into(),
-                    set: name.into(),
-                    message: format!(
-                        "no [[measurement]] with landmarks on this node set; the scene's landmark \
-                         node sets are: {}",
-                        if known.is_empty() { "none".into() } else { known.join(", ") }
-                    ),
-                }
-            })
+        self.measurement_of(MeasuredKind::Landmarks, name)
     }
 }

@@ -241,6 +241,61 @@ impl Session {
     }
 }
 
+/// The kinds of `[[measurement]]` a session takes new data for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum MeasuredKind {
+    /// A scanned surface (`update points`).
+    Surface,
+    /// Landmark pairs (`update landmarks`).
+    Landmarks,
+}
+
+impl MeasuredKind {
+    fn is(self, data: &crate::measure::MeasuredData) -> bool {
+        use crate::measure::MeasuredData;
+        match self {
+            MeasuredKind::Surface => matches!(data, MeasuredData::Surface { .. }),
+            MeasuredKind::Landmarks => matches!(data, MeasuredData::Landmarks { .. }),
+        }
+    }
+
+    /// The update's key in messages, and the data's name.
+    fn words(self) -> (&'static str, &'static str, &'static str) {
+        match self {
+            MeasuredKind::Surface => ("update points", "points", "scanned"),
+            MeasuredKind::Landmarks => ("update landmarks", "landmarks", "landmark"),
+        }
+    }
+}
+
+impl Session {
+    /// The node sets of the scene's measurements of `kind`, in scene order.
+    fn sets_of(&self, kind: MeasuredKind) -> Vec<&str> {
+        let p = &self.run.prepared;
+        p.measurements.iter().filter(|m| kind.is(&m.data)).map(|m| m.nset.as_str()).collect()
+    }
+
+    /// The index of the measurement of `kind` on node set `name`; an error listing the sets
+    /// there are.
+    fn measurement_of(&self, kind: MeasuredKind, name: &str) -> Result<usize, SceneError> {
+        let p = &self.run.prepared;
+        p.measurements.iter().position(|m| m.nset == name && kind.is(&m.data)).ok_or_else(|| {
+            let known = self.sets_of(kind);
+            let (key, data, adjective) = kind.words();
+            SceneError::Set {
+                scene: p.path.clone(),
+                key: key.into(),
+                set: name.into(),
+                message: format!(
+                    "no [[measurement]] with {data} on this node set; the scene's {adjective} \
+                     node sets are: {}",
+                    if known.is_empty() { "none".into() } else { known.join(", ") }
+                ),
+            }
+        })
+    }
+}
+
 /// Whether the boundary prescribes (possibly non-zero) displacements rather than fixing.
 fn moves(b: &Boundary) -> bool {
     b.displacement.is_some()

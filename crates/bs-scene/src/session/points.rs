@@ -11,7 +11,7 @@ use bs_dr::{DataTerm, Progress, Springs};
 use bs_fit::Term;
 use bs_mesh::Point3;
 
-use super::Session;
+use super::{MeasuredKind, Session};
 use crate::SceneError;
 use crate::measure::MeasuredData;
 use crate::run::Solved;
@@ -20,12 +20,7 @@ impl Session {
     /// The node sets of the scene's scanned-surface measurements: the keys
     /// [`Session::update_points`] takes.
     pub fn measured_sets(&self) -> Vec<&str> {
-        let p = &self.run.prepared;
-        p.measurements
-            .iter()
-            .filter(|m| matches!(m.data, MeasuredData::Surface { .. }))
-            .map(|m| m.nset.as_str())
-            .collect()
+        self.sets_of(MeasuredKind::Surface)
     }
 
     /// Replaces the scans of the measurements on the named node sets by `scans` (scene frame
@@ -58,23 +53,7 @@ impl Session {
 
     /// The index of the scanned-surface measurement on node set `name`.
     fn measurement(&self, name: &str) -> Result<usize, SceneError> {
-        let p = &self.run.prepared;
-        p.measurements
-            .iter()
-            .position(|m| m.nset == name && matches!(m.data, MeasuredData::Surface { .. }))
-            .ok_or_else(|| {
-                let known = self.measured_sets();
-                SceneError::Set {
-                    scene: p.path.clone(),
-                    key: "update points".into(),
-                    set: name.into(),
-                    message: format!(
-                        "no [[measurement]] with points on this node set; the scene's scanned \
-                         node sets are: {}",
-                        if known.is_empty() { "none".into() } else { known.join(", ") }
-                    ),
-                }
-            })
+        self.measurement_of(MeasuredKind::Surface, name)
     }
 
     /// Refuses an empty scan, a non-finite point, and a scan in another frame or unit.
