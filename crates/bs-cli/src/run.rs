@@ -266,10 +266,16 @@ pub fn measurement_line(i: usize, m: &bs_scene::measure::MeasurementReport, u: &
             m.mean_pull
         );
     }
+    let sliding = m.sag_direction.map_or("; sliding free".to_string(), |d| {
+        format!(
+            "; sliding resisted across the sag direction ({:.2}, {:.2}, {:.2})",
+            d[0], d[1], d[2]
+        )
+    });
     format!(
         "[[measurement]] #{} {} on {}: {} of {} points inliers ({} outliers, {} on the patch \
          border, {} farther than max_distance), residual RMS {:.3} {u} (max {:.3}); the data \
-         moved the surface up to {:.3} {u} (mean {:.3}){rigid}",
+         moved the surface up to {:.3} {u} (mean {:.3}){sliding}{rigid}",
         i + 1,
         m.file,
         m.nset,

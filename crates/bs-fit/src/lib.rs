@@ -39,4 +39,5 @@ pub mod synthetic;
 pub use fits::{Fits, Term};
 pub use landmarks::{Anchor, LandmarkFit};
 pub use rigid::{Rigid, RigidError, RigidFit, RigidParams, fit_rigid};
+pub use surface::slide::{Slide, slide_stiffness};
 pub use surface::{PointFit, PointStatus, SurfaceFit, SurfaceParams, surface_stiffness};

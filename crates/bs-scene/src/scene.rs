@@ -444,6 +444,26 @@ pub struct Measurement {
     /// Scanned points farther than this from the exposed surface are not matched (mesh
     /// units; default 20 mm).
     pub max_distance: Option<f64>,
+    /// Whether the scanned patch's sliding along itself (which a scan cannot see) is
+    /// resisted by a weak prior (default) or left to the model alone (docs/fit.md).
+    #[serde(default)]
+    pub sliding: Sliding,
+    /// The direction the exposed surface sinks along, which the sliding prior leaves free
+    /// (scene frame; default: the patch's mean inward normal, into the window).
+    pub sag_direction: Option<[f64; 3]>,
+}
+
+/// What a scan cannot see, its patch sliding along itself: resisted by a weak prior across
+/// the sag direction, or free (decided by the model alone).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Sliding {
+    /// Displacement across the sag direction resisted as the tissue resists a displacement
+    /// of the window's size.
+    #[default]
+    Resisted,
+    /// No prior: the elasticity, the skull and the held nodes alone decide.
+    Free,
 }
 
 impl Measurement {
@@ -466,6 +486,13 @@ impl Measurement {
             (None, Some(_)) if self.skull_points.is_some() || self.rigid => {
                 return Err("skull_points and rigid go with points (a scan), not landmarks".into());
             }
+            (None, Some(_))
+                if self.sliding != Sliding::Resisted || self.sag_direction.is_some() =>
+            {
+                return Err(
+                    "sliding and sag_direction go with points (a scan), not landmarks".into()
+                );
+            }
             _ => {}
         }
         if !(self.sigma > 0.0 && self.sigma.is_finite()) {
@@ -478,6 +505,19 @@ impl Measurement {
             && !(d > 0.0 && d.is_finite())
         {
             return Err(format!("max_distance must be positive (mesh units), got {d}"));
+        }
+        if let Some(d) = self.sag_direction {
+            let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            if !(n > 0.0 && n.is_finite()) {
+                return Err(format!(
+                    "sag_direction must be a non-zero vector [x, y, z] (scene frame), got {d:?}"
+                ));
+            }
+            if self.sliding == Sliding::Free {
+                return Err("sag_direction is the direction the sliding prior leaves free: \
+                            with sliding = \"free\" there is no prior; drop one of them"
+                    .into());
+            }
         }
         if self.rigid && self.skull_points.is_none() {
             return Err("rigid = true needs skull_points: the misalignment is estimated from \

@@ -24,7 +24,14 @@ pub fn fixture() -> Result<(), String> {
     let dir = root().join("fixtures/fit");
     let started = Instant::now();
     let t = truth(&dir, "../mni152-regions")?;
-    let case = Case { sigma: 1.0, coverage: 0.5, outliers: 0.05, misalignment: 2.0, seed: 47 };
+    let case = Case {
+        sigma: 1.0,
+        coverage: 0.5,
+        outliers: 0.05,
+        misalignment: 2.0,
+        seed: 47,
+        free: false,
+    };
     let text = write_scan(&t, &case, &dir, "../mni152-regions")?;
     crate::util::write(&dir.join("scene.toml"), &text)?;
     // The same scan as a PLY file (for the test that both give the same answer).
@@ -78,6 +85,9 @@ pub fn run_study(quick: bool) -> Result<(), String> {
     for (s, e) in &imposed {
         writeln!(doc, "| {s} | {} |", study::cell(e)).unwrap();
     }
+    let sliding = study::sliding(&t, &dir, quick)?;
+    writeln!(doc, "\nThe sliding prior against free sliding (`sliding = \"free\"`), on this truth and on one whose sag is tilted 30° off the window's axis towards +x, where the prior's free direction (the window's mean inward normal) is wrong:\n").unwrap();
+    doc += &study::sliding_table(&sliding);
     let counts: &[usize] = if quick { &[15] } else { &[5, 15, 30] };
     let seeds: &[u64] = if quick { &[1000] } else { &[1000, 2000, 3000] };
     let marks: Vec<_> = counts
@@ -120,6 +130,7 @@ pub fn main(args: &[String]) -> Result<(), String> {
                 outliers: v.get(2).copied().unwrap_or(0.0),
                 misalignment: v.get(3).copied().unwrap_or(0.0),
                 seed: 47,
+                free: v.get(4).is_some_and(|&f| f != 0.0),
             };
             let dir = root().join("target/fit-try");
             let t = truth(&dir, &regions().display().to_string())?;

@@ -32,7 +32,8 @@ pub struct Row {
 /// The coverage oracle: the exact displacement vectors of the covered craniotomy nodes
 /// imposed, the rest free. Deep error (mean, p95, max).
 pub fn oracle(t: &Truth, coverage: f64, dir: &Path) -> Result<(f64, f64, f64), String> {
-    let case = Case { sigma: 0.0, coverage, outliers: 0.0, misalignment: 0.0, seed: 0 };
+    let case =
+        Case { sigma: 0.0, coverage, outliers: 0.0, misalignment: 0.0, seed: 0, free: false };
     let cut = case.coverage();
     let centre = truth::window_centre(t);
     let deformed = truth::deformed(t);
@@ -124,6 +125,7 @@ pub fn cases(quick: bool) -> Vec<(&'static str, Case)> {
         outliers,
         misalignment,
         seed: 47,
+        free: false,
     };
     let mut v = Vec::new();
     let sigmas: &[f64] = if quick { &[0.0, 1.0] } else { &[0.0, 0.5, 1.0, 2.0] };
@@ -195,5 +197,61 @@ pub fn table(rows: &[Row], oracles: &[Oracle], none: (f64, f64, f64)) -> String 
         none.0, none.1
     )
     .unwrap();
+    s
+}
+
+/// One row of the sliding comparison: the truth's tilt, the case, and the deep error with
+/// the sliding prior (the default) and without it.
+pub struct SlidingRow {
+    pub tilt: f64,
+    pub case: Case,
+    pub resisted: DeepError,
+    pub free: DeepError,
+}
+
+/// The sliding prior against free sliding, on the truth and on a truth whose sag is tilted
+/// `TILT` degrees off the window's axis (where the prior's direction is wrong).
+pub fn sliding(t: &Truth, dir: &Path, quick: bool) -> Result<Vec<SlidingRow>, String> {
+    const TILT: f64 = 30.0;
+    let tilted_dir = dir.join("tilted");
+    let tilted = truth::truth_tilted(&tilted_dir, &truth::regions().display().to_string(), TILT)?;
+    let cases: Vec<Case> =
+        cases(quick).into_iter().filter(|(g, _)| *g == "target").map(|c| c.1).collect();
+    let exact =
+        Case { sigma: 0.0, coverage: 1.0, outliers: 0.0, misalignment: 0.0, seed: 47, free: false };
+    let mut rows = Vec::new();
+    for (tilt, truth, d) in [(0.0, t, dir), (TILT, &tilted, tilted_dir.as_path())] {
+        for &case in std::iter::once(&exact).chain(&cases) {
+            let resisted = fit(truth, "sliding", case, d).fit;
+            let free = fit(truth, "sliding", Case { free: true, ..case }, d).fit;
+            eprintln!("sliding, tilt {tilt}: {case:?}: {} / free {}", cell(&resisted), cell(&free));
+            rows.push(SlidingRow { tilt, case, resisted, free });
+        }
+    }
+    Ok(rows)
+}
+
+/// The sliding comparison's table (Markdown).
+pub fn sliding_table(rows: &[SlidingRow]) -> String {
+    let mut s = String::from(
+        "| truth's sag | σ (mm) | coverage | outliers | misalignment | sliding resisted (default): deep mean / p95 (mm) | sliding free |\n\
+         |---|---|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        let c = &r.case;
+        let sag =
+            if r.tilt == 0.0 { "along −z".to_string() } else { format!("{}° off −z", r.tilt) };
+        writeln!(
+            s,
+            "| {sag} | {} | {} % | {} % | {} mm | {} | {} |",
+            c.sigma,
+            c.coverage * 100.0,
+            c.outliers * 100.0,
+            c.misalignment,
+            cell(&r.resisted),
+            cell(&r.free)
+        )
+        .unwrap();
+    }
     s
 }

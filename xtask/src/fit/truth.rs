@@ -47,10 +47,12 @@ pub fn regions() -> PathBuf {
     root().join("fixtures/mni152-regions")
 }
 
-/// The bell-shaped sag of node `x` (along −z).
-fn bell(x: &Point3<f64>, centre: &Point3<f64>) -> Vector3<f64> {
+/// The bell-shaped sag of node `x`: along −z, or tilted `tilt` degrees from it towards +x
+/// (a head turned so that gravity meets the window at an angle).
+fn bell(x: &Point3<f64>, centre: &Point3<f64>, tilt: f64) -> Vector3<f64> {
     let rho2 = (x.x - centre.x).powi(2) + (x.y - centre.y).powi(2);
-    Vector3::new(0.0, 0.0, -BELL_DEPTH * (-rho2 / (2.0 * BELL_WIDTH * BELL_WIDTH)).exp())
+    let (s, c) = tilt.to_radians().sin_cos();
+    Vector3::new(s, 0.0, -c) * BELL_DEPTH * (-rho2 / (2.0 * BELL_WIDTH * BELL_WIDTH)).exp()
 }
 
 /// The regions scene's text (its materials, FIXED, contact, solver) with its craniotomy
@@ -67,6 +69,11 @@ pub fn scene_text(craniotomy: &str, mesh_dir: &str) -> String {
 /// Solves the truth (in `dir`, where its scene and boundary file go; the scene finds the
 /// regions mesh in `mesh_dir`).
 pub fn truth(dir: &Path, mesh_dir: &str) -> Result<Truth, String> {
+    truth_tilted(dir, mesh_dir, 0.0)
+}
+
+/// The truth with its sag tilted `tilt` degrees off −z (towards +x).
+pub fn truth_tilted(dir: &Path, mesh_dir: &str, tilt: f64) -> Result<Truth, String> {
     std::fs::create_dir_all(dir).map_err(|e| e.to_string())?;
     let base = Prepared::load(&regions().join("scene.toml")).map_err(|e| e.to_string())?;
     let mesh = base.mesh.clone();
@@ -75,14 +82,15 @@ pub fn truth(dir: &Path, mesh_dir: &str) -> Result<Truth, String> {
     let centre = *nodes.iter().map(|&a| &mesh.nodes[a]).max_by(|a, b| a.z.total_cmp(&b.z)).unwrap();
     let mut csv = String::from("node_id,ux,uy,uz\n");
     for &a in &nodes {
-        let d = bell(&mesh.nodes[a], &centre);
+        let d = bell(&mesh.nodes[a], &centre, tilt);
         writeln!(csv, "{},{:?},{:?},{:?}", mesh.node_ids[a], d.x, d.y, d.z).unwrap();
     }
     crate::util::write(&dir.join("truth-boundary.csv"), &csv)?;
     let boundary = format!(
-        "# The truth: the craniotomy sags in a bell {BELL_DEPTH} mm deep, {BELL_WIDTH} mm wide \
+        "# The truth: the craniotomy sags in a bell {BELL_DEPTH} mm deep, {BELL_WIDTH} mm wide{} \
          (truth-boundary.csv).\n[[boundary]]\nnset = \"CRANIOTOMY\"\n\
          displacement_file = \"truth-boundary.csv\"\n",
+        if tilt == 0.0 { String::new() } else { format!(", {tilt} degrees off -z") }
     );
     let scene = dir.join("scene-truth.toml");
     crate::util::write(&scene, &scene_text(&boundary, mesh_dir))?;
@@ -145,6 +153,8 @@ pub struct Case {
     /// Misalignment (mm of translation; with a 1.5° rotation), estimated from bone points.
     pub misalignment: f64,
     pub seed: u64,
+    /// `sliding = "free"`: no sliding prior.
+    pub free: bool,
 }
 
 impl Case {
@@ -201,6 +211,9 @@ pub fn write_scan(t: &Truth, case: &Case, dir: &Path, mesh_dir: &str) -> Result<
     let sigma = case.sigma.max(0.1);
     let mut m =
         format!("[[measurement]]\npoints = \"scan.csv\"\nnset = \"CRANIOTOMY\"\nsigma = {sigma}\n");
+    if case.free {
+        m += "sliding = \"free\"\n";
+    }
     if case.misalignment > 0.0 {
         let bone = bone_points(t, case.seed + 1);
         let bone = synthetic::perturb(&bone, case.sigma, &misalign, case.seed + 2);

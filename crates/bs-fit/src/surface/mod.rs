@@ -28,6 +28,7 @@
 //! surface (its distance, robust weight, inlier or not) for the reports.
 
 pub mod plane;
+pub mod slide;
 
 use bs_contact::Patch;
 use bs_contact::grid::BucketGrid;
@@ -36,6 +37,7 @@ use bs_mesh::{Point3, Vector3};
 use rayon::prelude::*;
 
 use self::plane::{Cylinder, LocalPlane};
+use self::slide::Slide;
 use crate::robust;
 
 /// The data stiffness per area of a scanned surface: `κ = min(μ L / σ², 100 μ / h)`, `μ`
@@ -131,6 +133,11 @@ pub struct SurfaceFit {
     /// The patch nodes where the planes were last found, and the springs found there.
     anchor: Vec<Point3<f64>>,
     springs: Springs,
+    /// The patch vertices where the term was made (the reference), their lumped areas, and
+    /// the sliding prior ([`slide`]).
+    reference: Vec<Point3<f64>>,
+    lumped: Vec<f64>,
+    slide: Option<Slide>,
 }
 
 impl SurfaceFit {
@@ -158,6 +165,8 @@ impl SurfaceFit {
         let border = border_edges(&triangles);
         let vertices: Vec<Point3<f64>> = nodes.iter().map(|&a| positions[a]).collect();
         let edge = mean_edge(&vertices, &triangles);
+        let lumped = slide::lumped_areas(&vertices, &triangles);
+        let reference = vertices.clone();
         let mut fit = SurfaceFit {
             points: Vec::new(),
             grid: BucketGrid::new(&[], Vector3::repeat(1.0)),
@@ -174,6 +183,9 @@ impl SurfaceFit {
             areas: triangles_areas(positions, faces),
             anchor: Vec::new(),
             springs: Springs::new(),
+            reference,
+            lumped,
+            slide: None,
         };
         fit.set_points(points);
         fit
@@ -238,6 +250,29 @@ impl SurfaceFit {
     pub fn set_stiffness(&mut self, stiffness: f64) {
         self.params.stiffness = stiffness;
         self.anchor.clear();
+    }
+
+    /// Sets the sliding prior ([`slide`]; `None`: sliding is free), made into springs at
+    /// the next linearisation.
+    pub fn set_slide(&mut self, slide: Option<Slide>) {
+        self.slide = slide;
+        self.anchor.clear();
+    }
+
+    /// The sliding prior.
+    pub fn slide(&self) -> Option<Slide> {
+        self.slide
+    }
+
+    /// The patch's mean inward normal where the term was made (the default direction of the
+    /// sliding prior; `None` if its normals cancel).
+    pub fn inward_normal(&self) -> Option<Vector3<f64>> {
+        slide::inward_normal(&self.reference, self.patch.triangles())
+    }
+
+    /// The patch's area where the term was made.
+    pub fn area(&self) -> f64 {
+        self.lumped.iter().sum()
     }
 
     /// The model nodes of the patch.
@@ -457,6 +492,9 @@ impl SurfaceFit {
                 target,
                 stiffness: self.params.stiffness * self.areas[q / 3] / 3.0 * p.coverage,
             });
+        }
+        if let Some(s) = &self.slide {
+            slide::push_springs(s, &self.nodes, &self.reference, &self.lumped, &mut springs);
         }
         self.springs = springs;
     }

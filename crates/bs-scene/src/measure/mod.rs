@@ -48,6 +48,9 @@ pub enum MeasuredData {
         face_elements: Vec<usize>,
         /// Bone points of the same scan, and their file.
         bone: Option<(PathBuf, Vec<Point3<f64>>)>,
+        /// The sliding prior: `None` free, else the sag direction (`None`: the patch's mean
+        /// inward normal).
+        slide: Option<Option<bs_mesh::Vector3<f64>>>,
     },
     /// Landmark pairs.
     Landmarks {

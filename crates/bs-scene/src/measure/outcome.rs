@@ -59,6 +59,13 @@ pub struct MeasurementReport {
     pub solves: usize,
     /// The rigid correction, when one was estimated.
     pub rigid: Option<RigidReport>,
+    /// The sliding prior of a scan (docs/fit.md): the sag direction its patch moves along
+    /// freely and the stiffness per area (Pa per length unit) resisting motion across it;
+    /// `None` and 0 with `sliding = "free"` and for landmarks.
+    #[serde(default)]
+    pub sag_direction: Option<[f64; 3]>,
+    #[serde(default)]
+    pub sliding_stiffness: f64,
     /// How far the data moved the model: the largest and mean displacement of the nodes
     /// the measurement pulls.
     pub max_pull: f64,
@@ -164,6 +171,8 @@ fn surface_report(
         covered_area: state.covered_area[k],
         solves: state.solves,
         rigid,
+        sag_direction: fit.slide().map(|s| s.direction.into()),
+        sliding_stiffness: fit.slide().map_or(0.0, |s| s.stiffness),
         max_pull: pulls.iter().copied().fold(0.0, f64::max),
         mean_pull: pulls.iter().sum::<f64>() / pulls.len().max(1) as f64,
     }
@@ -229,6 +238,8 @@ fn landmark_report(
         covered_area: 0.0,
         solves: state.solves,
         rigid: None,
+        sag_direction: None,
+        sliding_stiffness: 0.0,
         max_pull: pulls.iter().copied().fold(0.0, f64::max),
         mean_pull: pulls.iter().sum::<f64>() / pulls.len().max(1) as f64,
     }

@@ -85,7 +85,19 @@ fn read_one(
         sigma: m.sigma,
         max_distance,
         rigid: m.rigid,
-        data: MeasuredData::Surface { file: file.clone(), points, faces, face_elements, bone },
+        data: MeasuredData::Surface {
+            file: file.clone(),
+            points,
+            faces,
+            face_elements,
+            bone,
+            slide: match m.sliding {
+                crate::scene::Sliding::Free => None,
+                crate::scene::Sliding::Resisted => {
+                    Some(m.sag_direction.map(|d| bs_mesh::Vector3::from(d).normalize()))
+                }
+            },
+        },
     })
 }
 

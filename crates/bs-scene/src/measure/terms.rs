@@ -47,8 +47,13 @@ pub fn compose_fits(p: &Prepared) -> Result<Option<FitState>, SceneError> {
     let mut reach = 0.0f64;
     for m in &p.measurements {
         let (term, fit, kappa, area, pull) = match &m.data {
-            MeasuredData::Surface { points, faces, face_elements, bone, .. } => {
-                surface_term(p, m, points, faces, face_elements, bone.as_ref())?
+            MeasuredData::Surface { points, faces, face_elements, bone, slide, .. } => {
+                let mut composed = surface_term(p, m, points, faces, face_elements, bone.as_ref())?;
+                if let Term::Surface(term) = &mut composed.0 {
+                    let mu = tissue_modulus(p, face_elements);
+                    term.set_slide(slide_prior(term, *slide, mu));
+                }
+                composed
             }
             MeasuredData::Landmarks { pairs, anchors, .. } => landmark_term(m, pairs, anchors),
         };
@@ -90,7 +95,7 @@ fn surface_term(
         Some(f) => points.iter().map(|q| f.rigid.apply(q)).collect(),
         None => points.to_vec(),
     };
-    let mu = face_elements.iter().map(|&e| shear_modulus(p, e)).fold(0.0f64, f64::max);
+    let mu = tissue_modulus(p, face_elements);
     let params = SurfaceParams { sigma: m.sigma, stiffness: 1.0, max_distance: m.max_distance };
     let mut term = SurfaceFit::new(corrected, faces, &p.mesh.nodes, params);
     let mut springs = Springs::new();
@@ -123,6 +128,22 @@ fn landmark_term(
         vec![0.0; anchors.len()],
     );
     (Term::Landmarks(fit), None, 0.0, 0.0, pull)
+}
+
+/// The sliding prior of a scan's term: `slide` is `None` for free sliding, else the sag
+/// direction (`None`: the patch's mean inward normal); `mu` the tissue's shear modulus.
+pub(crate) fn slide_prior(
+    term: &SurfaceFit,
+    slide: Option<Option<bs_mesh::Vector3<f64>>>,
+    mu: f64,
+) -> Option<bs_fit::Slide> {
+    let direction = slide?.or_else(|| term.inward_normal())?;
+    Some(bs_fit::Slide { direction, stiffness: bs_fit::slide_stiffness(mu, term.area()) })
+}
+
+/// The shear modulus of the stiffest tissue under a scan's faces (Pa).
+pub(crate) fn tissue_modulus(p: &Prepared, face_elements: &[usize]) -> f64 {
+    face_elements.iter().map(|&e| shear_modulus(p, e)).fold(0.0f64, f64::max)
 }
 
 /// The shear modulus of element `e`'s material (Pa).
