@@ -58,18 +58,9 @@ pub fn write_displacement_mha(
         fmt(&origin),
         fmt(&sp),
     );
-    let name = file.file_name().and_then(|n| n.to_str()).unwrap_or("field.mha");
-    let dir = file.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let tmp = dir.join(format!(".{name}.{}.partial", std::process::id()));
-    let result = (|| -> std::io::Result<()> {
-        let mut f = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
+    bs_atomic::write_atomic(file, |f| {
         f.write_all(header.as_bytes())?;
-        f.write_all(&compressed)?;
-        f.into_inner().map_err(|e| e.into_error())?.sync_all()?;
-        std::fs::rename(&tmp, file)
-    })();
-    result.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        err(format!("could not write: {e}"))
+        f.write_all(&compressed)
     })
+    .map_err(|e| err(format!("could not write: {e}")))
 }

@@ -306,21 +306,10 @@ fn write_atomic(
     } else {
         return Err(io(file, "a NIfTI output must end in .nii or .nii.gz"));
     };
-    let dir = file.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    // One dot-free stem: the writer re-derives the extension from the last dots.
-    static COUNTER: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let tmp = dir.join(format!(".bs-partial-{}-{n}{ext}", std::process::id()));
-    match write(&tmp) {
-        Ok(()) => std::fs::rename(&tmp, file).map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            io(file, format!("could not move the written file into place: {e}"))
-        }),
-        Err(e) => {
-            let _ = std::fs::remove_file(&tmp);
-            Err(io(file, format!("could not write: {e}")))
-        }
-    }
+    // The temporary name keeps the extension (and no other dot): the writer derives the
+    // compression from it.
+    bs_atomic::write_via(file, ext, |tmp| write(tmp).map_err(std::io::Error::other))
+        .map_err(|e| io(file, format!("could not write: {e}")))
 }
 
 /// A header for a volume on `grid`: the reference's fields when given (descriptions,

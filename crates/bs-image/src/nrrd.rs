@@ -20,7 +20,7 @@
 
 use std::collections::BTreeMap;
 use std::io::{Read, Write};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use nalgebra::Matrix4;
 
@@ -568,20 +568,11 @@ fn write_nrrd(file: &Path, header: &str, raw: &[u8]) -> Result<(), ImageError> {
     let mut z = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
     z.write_all(raw).map_err(|e| io(file, e.to_string()))?;
     let compressed = z.finish().map_err(|e| io(file, e.to_string()))?;
-    let name = file.file_name().and_then(|n| n.to_str()).unwrap_or("image.nrrd");
-    let dir = file.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let tmp: PathBuf = dir.join(format!(".{name}.{}.partial", std::process::id()));
-    let result = (|| -> std::io::Result<()> {
-        let mut f = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
+    bs_atomic::write_atomic(file, |f| {
         f.write_all(header.as_bytes())?;
-        f.write_all(&compressed)?;
-        f.into_inner().map_err(|e| e.into_error())?.sync_all()?;
-        std::fs::rename(&tmp, file)
-    })();
-    result.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        io(file, format!("could not write: {e}"))
+        f.write_all(&compressed)
     })
+    .map_err(|e| io(file, format!("could not write: {e}")))
 }
 
 fn scalar_header(grid: &Grid, ty: &str) -> String {

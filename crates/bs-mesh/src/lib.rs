@@ -44,6 +44,7 @@
 //! Architecture invariant: this crate knows nothing about materials, solvers or contact.
 
 mod boundary;
+pub mod closest;
 pub mod io;
 pub mod lattice;
 pub mod lattice_inside;
@@ -59,7 +60,7 @@ pub mod tps;
 mod validate;
 
 pub use boundary::BoundarySurface;
-pub use locate::{LocateError, Location, TetLocator, closest_on_triangle, transfer};
+pub use locate::{LocateError, Location, TetLocator, transfer};
 pub use mesh::{Element, ElementKind, HEX_REFERENCE, Mesh};
 /// The linear algebra of every coordinate here, re-exported so that callers need no
 /// separate dependency.

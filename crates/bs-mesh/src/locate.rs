@@ -181,7 +181,7 @@ impl TetLocator {
         let c = &self.corners[e];
         let q = [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]
             .iter()
-            .map(|f| closest_on_triangle(p, &c[f[0]], &c[f[1]], &c[f[2]]))
+            .map(|f| crate::closest::closest_point_triangle(p, &c[f[0]], &c[f[1]], &c[f[2]]).0)
             .min_by(|a, b| (p - a).norm_squared().total_cmp(&(p - b).norm_squared()))
             .unwrap_or(c[0]);
         let l = self.inverse[e] * (q - self.first[e]);
@@ -190,45 +190,6 @@ impl TetLocator {
         let distance = (p - q).norm().max(f64::MIN_POSITIVE);
         Location { element: e, weights: w.map(|x| x / s), distance }
     }
-}
-
-/// The point of triangle abc closest to p (Voronoi regions of vertices, edges, face;
-/// Ericson, *Real-Time Collision Detection*, 5.1.5).
-pub fn closest_on_triangle(
-    p: &Point3<f64>,
-    a: &Point3<f64>,
-    b: &Point3<f64>,
-    c: &Point3<f64>,
-) -> Point3<f64> {
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(&ap), ac.dot(&ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return *a;
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(&bp), ac.dot(&bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return *b;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return a + ab * (d1 / (d1 - d3));
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(&cp), ac.dot(&cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return *c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return a + ac * (d2 / (d2 - d6));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    }
-    let denom = 1.0 / (va + vb + vc);
-    a + ab * (vb * denom) + ac * (vc * denom)
 }
 
 fn bbox(c: &[Point3<f64>; 4]) -> (Point3<f64>, Point3<f64>) {

@@ -89,7 +89,7 @@ fn inside_distance(s: &TriSurface, p: &Point3<f64>) -> f64 {
     let mut best = (f64::INFINITY, 0.0);
     for t in 0..s.triangles.len() {
         let [a, b, c] = s.corners(t);
-        let q = bs_mesh::closest_on_triangle(p, &a, &b, &c);
+        let q = bs_mesh::closest::closest_point_triangle(p, &a, &b, &c).0;
         let d = (p - q).norm();
         if d < best.0 - 1e-12 {
             let n = (b - a).cross(&(c - a));

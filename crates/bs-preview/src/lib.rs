@@ -99,15 +99,11 @@ pub fn render(
     register_font();
     let rows = slices.len() as u32;
     let size = (3 * PANEL + BAR, TOP + rows * (PANEL + ROW_TITLE) + 10);
-    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("preview.png");
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let tmp = dir.join(format!(".{}.{}.png", name.trim_end_matches(".png"), std::process::id()));
-    let drawn = draw(&tmp, size, title, slices, window, max_mm)
-        .and_then(|_| std::fs::rename(&tmp, path).map_err(|e| PreviewError(e.to_string())));
-    drawn.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        PreviewError(format!("{}: could not write the preview: {}", path.display(), e.0))
+    // The temporary name keeps `.png`: the bitmap backend encodes by the extension.
+    bs_atomic::write_via(path, ".png", |tmp| {
+        draw(tmp, size, title, slices, window, max_mm).map_err(|e| std::io::Error::other(e.0))
     })
+    .map_err(|e| PreviewError(format!("{}: could not write the preview: {e}", path.display())))
 }
 
 fn err<E: std::fmt::Debug>(e: E) -> PreviewError {

@@ -187,7 +187,8 @@ impl Deck {
                 continue; // no skull
             }
             let path = dir.join(name);
-            std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
+            bs_mesh::io::write_atomic(&path, |w| w.write_all(text.as_bytes()))
+                .map_err(|e| e.to_string())?;
         }
         Ok(())
     }

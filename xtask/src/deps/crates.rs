@@ -10,10 +10,11 @@ use serde_json::Value;
 
 /// Workspace crates and the workspace crates each may depend on.
 pub const ALLOWED: &[(&str, &[&str])] = &[
-    ("bs-mesh", &[]),
+    ("bs-atomic", &[]),
+    ("bs-mesh", &["bs-atomic"]),
     ("bs-material", &[]),
-    ("bs-image", &[]),
-    ("bs-preview", &[]),
+    ("bs-image", &["bs-atomic"]),
+    ("bs-preview", &["bs-atomic"]),
     ("bs-meshgen", &["bs-mesh", "bs-image"]),
     ("bs-contact", &["bs-mesh"]),
     ("bs-dr", &["bs-mesh", "bs-material"]),
