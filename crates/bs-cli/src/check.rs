@@ -6,106 +6,104 @@ use std::path::Path;
 use std::process::ExitCode;
 
 use bs_scene::SceneError;
+use bs_scene::check::CheckReport;
 
-/// Runs `check`: prints a summary, exits non-zero (with the reason) if the scene cannot run.
-/// With `region_effect`, also solves the scene once as it is and once per region other
-/// than the largest with that region made parenchyma, and prints what each changes.
-pub fn run(scene_path: &Path, region_effect: bool) -> Result<ExitCode, SceneError> {
+/// Runs `check`: prints a summary (or, with `json`, the report as JSON), exits non-zero
+/// (with the reason) if the scene cannot run. With `region_effect`, also solves the scene
+/// once as it is and once per region other than the largest with that region made
+/// parenchyma, and prints what each changes.
+pub fn run(scene_path: &Path, region_effect: bool, json: bool) -> Result<ExitCode, SceneError> {
     let checked = bs_scene::check::check(scene_path)?;
-    let (p, composed, gap) = (&checked.prepared, &checked.composed, checked.initial_gap);
-    let mut o = String::new();
-    let u = p.scene.units.symbol();
-    let (tets, hexes) = p.mesh.count_by_kind();
-    let _ = writeln!(o, "{}: OK", scene_path.display());
-    let _ = writeln!(
-        o,
-        "  mesh: {} ({} nodes, {} tet4, {} hex8), element technology {}, units {u}",
-        p.scene.mesh.file.display(),
-        p.mesh.nodes.len(),
-        tets,
-        hexes,
-        p.element.name()
-    );
-    for (r, region) in p.scene.regions.iter().enumerate() {
-        let n = p.region_of_element.iter().filter(|&&x| x == r).count();
-        let m = region.material.moduli().expect("checked at parse time");
-        let _ = writeln!(
-            o,
-            "  region '{}': {n} elements, {:?}, mu = {:.6} Pa, kappa = {:.6} Pa",
-            region.elset, region.material.model, m.mu, m.kappa
-        );
+    let report = checked.report();
+    if json {
+        let text = serde_json::to_string_pretty(&report).expect("a check report serialises");
+        crate::emit(&format!("{text}\n"));
+        return Ok(ExitCode::SUCCESS);
     }
-    let fixed = p.prescribed.iter().filter(|c| c.iter().all(|v| *v == Some(0.0))).count();
-    let moved = p.prescribed.iter().filter(|c| c.iter().flatten().any(|v| *v != 0.0)).count();
-    let _ = writeln!(
-        o,
-        "  boundary: {fixed} nodes fully fixed, {moved} nodes with prescribed displacement"
-    );
-    for line in &p.loads {
-        let _ = writeln!(o, "  {line}");
-    }
-    if let (Some(s), Some(c)) = (&p.skull, &p.scene.contact) {
-        let _ = writeln!(
-            o,
-            "  skull: {} ({} vertices, {} triangles, closed, outward), algorithm {:?}",
-            c.skull.display(),
-            s.vertices.len(),
-            s.triangles.len(),
-            c.algorithm
-        );
-    } else {
-        let _ = writeln!(o, "  contact: none");
-    }
-    if let Some((min, max)) = gap {
-        let _ = writeln!(
-            o,
-            "  initial gap: min {min:.4} {u}, max {max:.4} {u} over {} slave nodes (all inside)",
-            composed.slaves.len()
-        );
-    }
-    let _ = writeln!(
-        o,
-        "  solver: {}, tolerance {} {u}",
-        p.scene.solver.kind.name(),
-        p.scene.solver.tolerance
-    );
-    let (dt, e) = composed.model.critical_time_step();
-    let _ = writeln!(
-        o,
-        "  stable time step: {:.4e} s (smallest element: id {}); Dynamic Relaxation uses \
-         fictitious masses, so this sets no step count",
-        dt * p.scene.units.metres(),
-        p.mesh.element_ids[e]
-    );
-    let _ = writeln!(o, "  expected memory: about {:.0} MB", checked.memory_estimate / 1e6);
-    for w in &p.warnings {
-        let _ = writeln!(o, "  warning: {w}");
-    }
-    match &checked.advice {
-        Ok(lines) => {
-            for line in lines {
-                let _ = writeln!(o, "  {line}");
-            }
-        }
-        Err(e) => {
-            let _ = writeln!(o, "  (no advice: {e})");
-        }
-    }
-    if p.scene.regions.len() > 1 && !region_effect {
+    let mut o = text(scene_path, &report);
+    if checked.prepared.scene.regions.len() > 1 && !region_effect {
         let _ = writeln!(
             o,
             "  regions: {} materials; `brainshift check --region-effect` solves the scene with \
              each region but the largest as that one and prints how much each changes the \
              displacements here (on fixtures/mni152-regions under an 8 mm push: at most 0.18 \
              mm, docs/regions.md)",
-            p.scene.regions.len()
+            report.regions.len()
         );
     }
     crate::emit(&o);
     if region_effect {
-        print_region_effects(p)?;
+        print_region_effects(&checked.prepared)?;
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The report as the text `brainshift check` prints.
+fn text(scene_path: &Path, r: &CheckReport) -> String {
+    let mut o = String::new();
+    let u = &r.units;
+    let _ = writeln!(o, "{}: OK", scene_path.display());
+    let _ = writeln!(
+        o,
+        "  mesh: {} ({} nodes, {} tet4, {} hex8), element technology {}, units {u}",
+        r.mesh.display(),
+        r.nodes,
+        r.tet4,
+        r.hex8,
+        r.element
+    );
+    for g in &r.regions {
+        let _ = writeln!(
+            o,
+            "  region '{}': {} elements, {}, mu = {:.6} Pa, kappa = {:.6} Pa",
+            g.elset, g.elements, g.model, g.shear_modulus, g.bulk_modulus
+        );
+    }
+    let _ = writeln!(
+        o,
+        "  boundary: {} nodes fully fixed, {} nodes with prescribed displacement",
+        r.fixed_nodes, r.moved_nodes
+    );
+    for line in &r.loads {
+        let _ = writeln!(o, "  {line}");
+    }
+    match &r.skull {
+        Some(s) => {
+            let _ = writeln!(
+                o,
+                "  skull: {} ({} vertices, {} triangles, closed, outward), algorithm {}",
+                s.file.display(),
+                s.vertices,
+                s.triangles,
+                s.algorithm
+            );
+        }
+        None => {
+            let _ = writeln!(o, "  contact: none");
+        }
+    }
+    if let Some((min, max)) = r.initial_gap {
+        let _ = writeln!(
+            o,
+            "  initial gap: min {min:.4} {u}, max {max:.4} {u} over {} slave nodes (all inside)",
+            r.slave_nodes
+        );
+    }
+    let _ = writeln!(o, "  solver: {}, tolerance {} {u}", r.solver, r.tolerance);
+    let _ = writeln!(
+        o,
+        "  stable time step: {:.4e} s (smallest element: id {}); Dynamic Relaxation uses \
+         fictitious masses, so this sets no step count",
+        r.stable_time_step, r.smallest_element
+    );
+    let _ = writeln!(o, "  expected memory: about {:.0} MB", r.memory_estimate_bytes / 1e6);
+    for w in &r.warnings {
+        let _ = writeln!(o, "  warning: {w}");
+    }
+    for line in &r.advice {
+        let _ = writeln!(o, "  {line}");
+    }
+    o
 }
 
 /// `--region-effect`: the solves, with a line per solve on standard error, then the table.

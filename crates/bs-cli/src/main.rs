@@ -48,6 +48,10 @@ enum Command {
         /// largest, and print the largest and mean displacement differences.
         #[arg(long)]
         region_effect: bool,
+        /// Print the report as JSON (the keys of the Python `Scene.check()` dict) instead of
+        /// text.
+        #[arg(long, conflicts_with = "region_effect")]
+        json: bool,
     },
     /// Solve a scene and write its result (VTU, VTK, CSV, JSON).
     ///
@@ -296,8 +300,8 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result: Result<ExitCode, Box<dyn std::error::Error>> = match cli.command {
         Command::Inspect { file, json } => inspect::run(&file, json).map_err(Into::into),
-        Command::Check { scene, region_effect } => {
-            check::run(&scene, region_effect).map_err(Into::into)
+        Command::Check { scene, region_effect, json } => {
+            check::run(&scene, region_effect, json).map_err(Into::into)
         }
         Command::Run { scene, out, threads, quiet } => run::run(&run::RunOptions {
             scene: scene.unwrap_or_else(run::default_scene),

@@ -171,7 +171,11 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
              nodes in contact, max penetration before correction {:.2e} {u_unit}; verified: min J \
              {:.3}, equilibrium residual {:.1e} (bound {:.1e})\n{}wrote {}, {}, {}, {}{}{}{}\n",
             report.steps,
-            if report.solver == "dr" { "steps" } else { "iterations" },
+            if run.prepared.scene.solver.kind == bs_scene::scene::SolverKind::Dr {
+                "steps"
+            } else {
+                "iterations"
+            },
             report.prepare_seconds,
             report.solve_seconds,
             report.contact_seconds,

@@ -91,6 +91,30 @@ fn mni152_brain_converges_with_contact_and_no_node_outside() {
     assert_contact_scene("mni152", "mni152");
 }
 
+/// `check --json` prints the report the library builds, field for field, and the text
+/// names each region's material as the scene spells it.
+#[test]
+fn check_prints_the_librarys_report_as_json_and_as_text() {
+    let scene = root().join("fixtures/mni152-regions/scene.toml");
+    let o = brainshift(&["check", scene.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let printed: bs_scene::check::CheckReport =
+        serde_json::from_slice(&o.stdout).expect("check --json prints a CheckReport");
+    let mut expected = bs_scene::check::check(&scene).unwrap().report();
+    expected.scene = printed.scene.clone(); // the path as given on each side
+    expected.mesh = printed.mesh.clone();
+    expected.skull.as_mut().unwrap().file = printed.skull.as_ref().unwrap().file.clone();
+    // The same text (serde_json's parser may round a float's last bit, its printer not).
+    let text = serde_json::to_string_pretty(&expected).unwrap();
+    assert_eq!(String::from_utf8_lossy(&o.stdout).trim_end(), text);
+    assert_eq!(printed.regions.len(), 3);
+    assert_eq!(printed.regions[2].model, "svk");
+    let o = brainshift(&["check", scene.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("region 'VENTRICLES': 70 elements, svk, mu = "), "{text}");
+    assert!(text.contains("algorithm coherent"), "{text}");
+}
+
 #[test]
 fn check_rejects_a_brain_that_pokes_through_the_skull() {
     let o =

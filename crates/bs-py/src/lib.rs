@@ -14,7 +14,7 @@ use std::time::Instant;
 use bs_contact::{Handler, MasterSurface, PaperParams};
 use bs_mesh::{Element, Mesh, Point3, TriSurface};
 use bs_scene::output::{RunContext, RunReport, report, write_outputs};
-use bs_scene::scene::{Algorithm, MaterialModel};
+use bs_scene::scene::Algorithm;
 use bs_scene::sweep::{self, RowOutcome, SlurmOptions, SweepError};
 use bs_scene::{Prepared, Run, SceneError, Solved};
 use numpy::ndarray::Array2;
@@ -360,71 +360,14 @@ impl Scene {
     }
 
     /// Everything a run does before solving (memory, composition, initial gap), as the
-    /// dict of what `brainshift check` prints; raises BrainshiftError if the scene cannot
-    /// run.
-    fn check<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    /// dict of what `brainshift check` prints (the keys of `brainshift check --json`);
+    /// raises BrainshiftError if the scene cannot run.
+    fn check(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
         let prepared = self.prepared.clone();
         let c = py
             .detach(|| bs_scene::check::check_prepared(prepared))
             .map_err(|e| scene_err(py, e))?;
-        let p = &c.prepared;
-        let d = PyDict::new(py);
-        let (tets, hexes) = p.mesh.count_by_kind();
-        d.set_item("scene", p.path.clone())?;
-        d.set_item("mesh", p.scene.mesh.file.clone())?;
-        d.set_item("nodes", p.mesh.nodes.len())?;
-        d.set_item("tet4", tets)?;
-        d.set_item("hex8", hexes)?;
-        d.set_item("element", p.element.name())?;
-        d.set_item("units", p.scene.units.symbol())?;
-        let regions = PyList::empty(py);
-        for (r, region) in p.scene.regions.iter().enumerate() {
-            let m = region.material.moduli().map_err(PyValueError::new_err)?;
-            let rd = PyDict::new(py);
-            rd.set_item("elset", &region.elset)?;
-            rd.set_item("elements", p.region_of_element.iter().filter(|&&x| x == r).count())?;
-            rd.set_item(
-                "model",
-                match region.material.model {
-                    MaterialModel::NeoHookean => "neo-hookean",
-                    MaterialModel::Svk => "svk",
-                    MaterialModel::Ogden => "ogden",
-                },
-            )?;
-            rd.set_item("shear_modulus", m.mu)?;
-            rd.set_item("bulk_modulus", m.kappa)?;
-            regions.append(rd)?;
-        }
-        d.set_item("regions", regions)?;
-        let fixed = p.prescribed.iter().filter(|c| c.iter().all(|v| *v == Some(0.0))).count();
-        let moved = p.prescribed.iter().filter(|c| c.iter().flatten().any(|v| *v != 0.0)).count();
-        d.set_item("fixed_nodes", fixed)?;
-        d.set_item("moved_nodes", moved)?;
-        d.set_item("slave_nodes", c.composed.slaves.len())?;
-        match (&p.skull, &p.scene.contact) {
-            (Some(s), Some(k)) => {
-                let sd = PyDict::new(py);
-                sd.set_item("file", k.skull.clone())?;
-                sd.set_item("vertices", s.vertices.len())?;
-                sd.set_item("triangles", s.triangles.len())?;
-                sd.set_item("algorithm", k.algorithm.name())?;
-                d.set_item("skull", sd)?;
-            }
-            _ => d.set_item("skull", py.None())?,
-        }
-        d.set_item("initial_gap", c.initial_gap)?;
-        d.set_item("solver", p.scene.solver.kind.name())?;
-        d.set_item("tolerance", p.scene.solver.tolerance)?;
-        let (dt, e) = c.composed.model.critical_time_step();
-        d.set_item("stable_time_step", dt * p.scene.units.metres())?;
-        d.set_item("smallest_element", p.mesh.element_ids[e])?;
-        d.set_item("memory_estimate_bytes", c.memory_estimate)?;
-        d.set_item("warnings", p.warnings.clone())?;
-        match &c.advice {
-            Ok(lines) => d.set_item("advice", lines.clone())?,
-            Err(e) => d.set_item("advice", vec![format!("(no advice: {e})")])?,
-        }
-        Ok(d)
+        from_json(py, &serde_json::to_string(&c.report()).expect("a check report serialises"))
     }
 
     /// Solves and verifies the scene (as `brainshift run`), with the GIL released.

@@ -146,6 +146,29 @@ pub enum MaterialModel {
     Ogden,
 }
 
+impl MaterialModel {
+    /// The scene-file name (`"neo-hookean"`, `"svk"`, `"ogden"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            MaterialModel::NeoHookean => "neo-hookean",
+            MaterialModel::Svk => "svk",
+            MaterialModel::Ogden => "ogden",
+        }
+    }
+}
+
+/// Each name enum displays as the scene file spells it.
+macro_rules! display_by_name {
+    ($($t:ty),*) => {$(
+        impl std::fmt::Display for $t {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str(self.name())
+            }
+        }
+    )*};
+}
+display_by_name!(ElementChoice, MaterialModel, Algorithm, SolverKind);
+
 /// A material: moduli from (E, ν) or (μ, κ), in Pa; density in kg/m³.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
