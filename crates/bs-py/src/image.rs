@@ -10,7 +10,8 @@ use numpy::PyArray2;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::{affine, image_error, volume_array};
+use crate::convert::image_error;
+use crate::result::{affine, volume_array};
 
 /// An image read into memory: its values (float32) on its grid, voxel index to RAS (mm).
 #[pyclass(module = "brainshift", frozen)]

@@ -15,7 +15,9 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
-use crate::{RunResult, Scene, f64_rows, index_rows, observer, scene_err, with_threads};
+use crate::convert::{f64_rows, index_rows, observer, scene_err, with_threads};
+use crate::result::RunResult;
+use crate::scene::Scene;
 
 /// A live session of a scene: `update` takes new measurements of the scene's prescribed
 /// boundaries (keyed by node set) and solves from the last good state.
