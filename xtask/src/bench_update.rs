@@ -10,7 +10,6 @@
 use std::path::Path;
 use std::time::Instant;
 
-use bs_image::Space;
 use bs_mesh::Vector3;
 use bs_scene::registration::{InverseMap, RunResult};
 use bs_scene::{BoundaryLoad, Prepared, Session, Solved};
@@ -147,7 +146,7 @@ pub fn main(args: &[String]) -> Result<(), String> {
         let result = RunResult::new(Path::new("(update)"), mesh.clone(), u, space, units)
             .map_err(|e| e.to_string())?
             .with_skull(skull.clone());
-        let map = InverseMap::new(&result, &v.grid, Space::Ras, &t1).map_err(|e| e.to_string())?;
+        let map = InverseMap::new(&result, &v.grid, &t1).map_err(|e| e.to_string())?;
         let map_seconds = t.elapsed().as_secs_f64();
         // Off the clock: it is the session's work, not the update's.
         if gap.is_none() {

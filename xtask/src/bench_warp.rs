@@ -10,7 +10,6 @@
 use std::path::Path;
 use std::time::Instant;
 
-use bs_image::Space;
 use bs_mesh::{Mesh, Point3};
 use bs_scene::registration::{InverseMap, OutsideChoice, RunResult};
 use bs_scene::{Prepared, Run};
@@ -47,10 +46,9 @@ pub fn main() -> Result<(), String> {
     let (read, img) = best(3, || bs_image::nifti::read_image(&t1));
     let img = img.map_err(|e| e.to_string())?;
     let v = &img.volume;
-    let (exact_s, _) = best(3, || {
-        InverseMap::with_outside(&result, &v.grid, Space::Ras, &t1, OutsideChoice::Identity)
-    });
-    let (map_s, map) = best(3, || InverseMap::new(&result, &v.grid, Space::Ras, &t1));
+    let (exact_s, _) =
+        best(3, || InverseMap::with_outside(&result, &v.grid, &t1, OutsideChoice::Identity));
+    let (map_s, map) = best(3, || InverseMap::new(&result, &v.grid, &t1));
     let map = map.map_err(|e| e.to_string())?;
     let outside = map.outside_report().ok_or("no extension")?;
     let (warp_s, warped) = best(3, || map.warp(v, &v.data));

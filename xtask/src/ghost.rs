@@ -14,7 +14,7 @@
 
 use std::path::Path;
 
-use bs_image::{Space, Volume};
+use bs_image::Volume;
 use bs_mesh::{Point3, Vector3};
 use bs_scene::registration::{InverseMap, OutsideChoice, RunResult};
 use bs_scene::{Prepared, Run};
@@ -65,7 +65,7 @@ pub fn main() -> Result<(), String> {
         ("identity (before)", OutsideChoice::Identity),
         ("harmonic extension to the skull", OutsideChoice::Extend),
     ] {
-        let map = InverseMap::with_outside(&result, g, Space::Ras, &fx.join("t1.nii.gz"), choice)
+        let map = InverseMap::with_outside(&result, g, &fx.join("t1.nii.gz"), choice)
             .map_err(|e| e.to_string())?;
         let warped = map.warp(&t1.volume, &t1.volume.data);
         let vacated = vacated(&map, &in_mask, &surface, g);

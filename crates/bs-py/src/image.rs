@@ -54,12 +54,7 @@ impl Image {
         &self,
         result: &bs_scene::registration::RunResult,
     ) -> Result<(bs_scene::registration::InverseMap, Gap), bs_scene::SceneError> {
-        let map = bs_scene::registration::InverseMap::new(
-            result,
-            &self.volume.grid,
-            bs_image::Space::Ras,
-            &self.path,
-        )?;
+        let map = bs_scene::registration::InverseMap::new(result, &self.volume.grid, &self.path)?;
         let gap = self.preop_gap(&map);
         Ok((map, gap))
     }

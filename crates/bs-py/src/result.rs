@@ -211,9 +211,7 @@ impl RunResult {
         let grid = image.grid(py)?;
         let path = image.path().to_path_buf();
         let map = py
-            .detach(|| {
-                bs_scene::registration::InverseMap::new(&result, &grid, bs_image::Space::Ras, &path)
-            })
+            .detach(|| bs_scene::registration::InverseMap::new(&result, &grid, &path))
             .map_err(|e| scene_err(py, e))?;
         Ok(image::InverseMap { map, grid, gap: std::sync::OnceLock::new() })
     }

@@ -253,29 +253,27 @@ fn show(e: &(Point3<f64>, Point3<f64>)) -> String {
     )
 }
 
+/// The world frame of every image brainshift holds: RAS mm (bs-image converts LPS files
+/// when it reads them), whatever the result's own frame.
+pub const IMAGE_SPACE: Space = Space::Ras;
+
 impl InverseMap {
-    /// The inverse map of `result` on `grid`, an image (file `image`, for messages) whose
-    /// world frame is `image_space`. Refuses a result whose deformed mesh mostly lies
+    /// The inverse map of `result` on `grid`, an image (file `image`, for messages) in
+    /// [`IMAGE_SPACE`]. Refuses a result whose deformed mesh mostly lies
     /// outside the image (fewer than half its nodes inside the image's extent).
-    pub fn new(
-        result: &RunResult,
-        grid: &Grid,
-        image_space: Space,
-        image: &Path,
-    ) -> Result<InverseMap, SceneError> {
-        InverseMap::with_outside(result, grid, image_space, image, OutsideChoice::Extend)
+    pub fn new(result: &RunResult, grid: &Grid, image: &Path) -> Result<InverseMap, SceneError> {
+        InverseMap::with_outside(result, grid, image, OutsideChoice::Extend)
     }
 
     /// [`InverseMap::new`] with the map outside the deformed brain chosen.
     pub fn with_outside(
         result: &RunResult,
         grid: &Grid,
-        image_space: Space,
         image: &Path,
         choice: OutsideChoice,
     ) -> Result<InverseMap, SceneError> {
         let scale = result.units.metres() / 1e-3; // mesh unit → mm
-        let to_image = |p: Point3<f64>| result.space.convert_point(image_space, p * scale);
+        let to_image = |p: Point3<f64>| result.space.convert_point(IMAGE_SPACE, p * scale);
         let reference: Vec<Point3<f64>> = result.mesh.nodes.iter().map(|&p| to_image(p)).collect();
         let deformed: Vec<Point3<f64>> = result
             .mesh
@@ -313,9 +311,9 @@ impl InverseMap {
                     result.dir.display(),
                     deformed.len(),
                     result.space.name(),
-                    image_space.name(),
+                    IMAGE_SPACE.name(),
                     show(&mesh_extent),
-                    image_space.name(),
+                    IMAGE_SPACE.name(),
                     show(&image_extent),
                 ),
             });
@@ -869,7 +867,7 @@ fn resample_and_write<T: Copy>(
         });
     }
     let t = Instant::now();
-    let map = InverseMap::new(result, &volume.grid, Space::Ras, image)?;
+    let map = InverseMap::new(result, &volume.grid, image)?;
     let data = resample(&map, volume, &volume.data);
     let map_seconds = t.elapsed().as_secs_f64();
     let t = Instant::now();
@@ -920,7 +918,7 @@ pub fn warp_loaded(
     volume: &Volume<f32>,
     source: &Path,
 ) -> Result<Volume<f32>, SceneError> {
-    let map = InverseMap::new(result, &volume.grid, Space::Ras, source)?;
+    let map = InverseMap::new(result, &volume.grid, source)?;
     let data = map.warp(volume, &volume.data);
     Ok(Volume { grid: volume.grid.clone(), data })
 }
@@ -933,7 +931,7 @@ pub fn warp_labels_volume(
     cavity: u32,
 ) -> Result<Volume<u32>, SceneError> {
     let (volume, _) = bs_image::formats::read_labels(image).map_err(image_error)?;
-    let map = InverseMap::new(result, &volume.grid, Space::Ras, image)?;
+    let map = InverseMap::new(result, &volume.grid, image)?;
     let data = map.warp_labels(&volume, &volume.data, cavity);
     Ok(Volume { grid: volume.grid, data })
 }
@@ -951,7 +949,7 @@ pub fn field_on(
     grid: &Grid,
     source: &Path,
 ) -> Result<Volume<[f32; 3]>, SceneError> {
-    let map = InverseMap::new(result, grid, Space::Ras, source)?;
+    let map = InverseMap::new(result, grid, source)?;
     Ok(Volume { grid: grid.clone(), data: map.field() })
 }
 
@@ -966,7 +964,7 @@ pub fn field_file(result_dir: &Path, reference: &Path, out: &Path) -> Result<Sum
     let read_seconds = started.elapsed().as_secs_f64();
     let t = Instant::now();
     let grid = &volume.grid;
-    let map = InverseMap::new(&result, grid, Space::Ras, reference)?;
+    let map = InverseMap::new(&result, grid, reference)?;
     let field = map.field();
     let norm = |n: usize| field[n].iter().map(|&c| c as f64 * c as f64).sum::<f64>().sqrt();
     let inside = map.inside_mask();

@@ -42,7 +42,7 @@ fn the_demo_warp_keeps_the_bone_moves_no_brain_label_outside_and_matches_the_nod
     .with_skull(Some(skull.clone()));
     let t1 = bs_image::nifti::read_image(&fx().join("t1.nii.gz")).unwrap().volume;
     let g = t1.grid.clone();
-    let map = InverseMap::new(&result, &g, Space::Ras, Path::new("t1")).unwrap();
+    let map = InverseMap::new(&result, &g, Path::new("t1")).unwrap();
     let report = map.outside_report().unwrap();
     // The extension folds on a few voxels where the gap is about a voxel wide (0.14 %
     // measured, the smallest det on the midline under the craniotomy): bound the share.
@@ -100,8 +100,7 @@ fn the_demo_warp_keeps_the_bone_moves_no_brain_label_outside_and_matches_the_nod
     let new = map.warp_labels(&labels, &labels.data, 0);
     assert_eq!(count_outside(&new, &map), 0);
     let identity =
-        InverseMap::with_outside(&result, &g, Space::Ras, Path::new("t1"), OutsideChoice::Identity)
-            .unwrap();
+        InverseMap::with_outside(&result, &g, Path::new("t1"), OutsideChoice::Identity).unwrap();
     let old = identity.warp_labels(&labels, &labels.data, 0);
     let ghost = count_outside(&old, &identity);
     assert!(ghost > 10_000, "the identity left {ghost} brain-label voxels outside the brain");

@@ -69,7 +69,7 @@ fn a_ball_translated_in_its_skull_vacates_a_crescent_of_fluid_and_leaves_the_bon
     let result = ball_in_skull(t);
     let g = grid();
     let pre = image(&g);
-    let map = InverseMap::new(&result, &g, Space::Ras, Path::new("(image)")).unwrap();
+    let map = InverseMap::new(&result, &g, Path::new("(image)")).unwrap();
     let warped = map.warp(&pre, &pre.data);
     let field = map.field();
     let report = map.outside_report().unwrap();
@@ -78,15 +78,9 @@ fn a_ball_translated_in_its_skull_vacates_a_crescent_of_fluid_and_leaves_the_bon
     assert!(report.folding.min > 0.2, "{report:?}");
 
     // The identity outside the brain (the old map): the ghost of the old ball stays.
-    let old = InverseMap::with_outside(
-        &result,
-        &g,
-        Space::Ras,
-        Path::new("(image)"),
-        OutsideChoice::Identity,
-    )
-    .unwrap()
-    .warp(&pre, &pre.data);
+    let old = InverseMap::with_outside(&result, &g, Path::new("(image)"), OutsideChoice::Identity)
+        .unwrap()
+        .warp(&pre, &pre.data);
 
     let (mut crescent, mut clear, mut deep_in_old_ball) = (0usize, 0usize, 0usize);
     let (mut sum_new, mut sum_old) = (0.0f64, 0.0f64);
@@ -143,22 +137,16 @@ fn the_extended_field_is_continuous_across_the_deformed_brain_surface() {
     let t = Vector3::new(0.0, 0.0, -7.0);
     let result = ball_in_skull(t);
     let g = grid();
-    let map = InverseMap::new(&result, &g, Space::Ras, Path::new("(image)")).unwrap();
+    let map = InverseMap::new(&result, &g, Path::new("(image)")).unwrap();
     let field = map.field();
     let component = |c: usize| Volume {
         grid: g.clone(),
         data: field.iter().map(|d| d[c]).collect::<Vec<f32>>(),
     };
     let comps = [component(0), component(1), component(2)];
-    let old = InverseMap::with_outside(
-        &result,
-        &g,
-        Space::Ras,
-        Path::new("(image)"),
-        OutsideChoice::Identity,
-    )
-    .unwrap()
-    .field();
+    let old = InverseMap::with_outside(&result, &g, Path::new("(image)"), OutsideChoice::Identity)
+        .unwrap()
+        .field();
     let old_comps: Vec<Volume<f32>> = (0..3)
         .map(|c| Volume { grid: g.clone(), data: old.iter().map(|d| d[c]).collect() })
         .collect();
@@ -229,7 +217,7 @@ fn a_ball_that_touched_its_skull_and_moved_away_leaves_fluid_not_the_old_cortex(
             })
             .collect(),
     };
-    let map = InverseMap::new(&result, &g, Space::Ras, Path::new("(image)")).unwrap();
+    let map = InverseMap::new(&result, &g, Path::new("(image)")).unwrap();
     let warped = map.warp(&pre, &pre.data);
     let off = |v: f32| ((v - FLUID) / (BRAIN - FLUID)).abs() as f64;
     let h = 1.5;

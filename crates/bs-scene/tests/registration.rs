@@ -85,7 +85,7 @@ fn check_affine(a: Matrix3<f64>, b: Vector3<f64>, tets: bool) {
     let mesh = box_at([10.0, 12.0, 9.0], tets);
     let result = affine_result(&mesh, &a, b);
     let g = grid();
-    let map = InverseMap::new(&result, &g, Space::Ras, Path::new("(image)")).unwrap();
+    let map = InverseMap::new(&result, &g, Path::new("(image)")).unwrap();
     let image = image_of(&g, linear);
     let warped = map.warp(&image, &image.data);
     let field = map.field();
@@ -189,7 +189,7 @@ fn the_pre_operative_gap_starts_half_a_voxel_and_half_a_millimetre_from_the_brai
     };
     for (h, n) in [(1.0, 64usize), (1.5, 44), (4.0, 16)] {
         let g = Grid::axis_aligned([n; 3], [h; 3], [-2.13, -1.61, -2.87]).unwrap();
-        let map = InverseMap::new(&result, &g, Space::Ras, Path::new("(image)")).unwrap();
+        let map = InverseMap::new(&result, &g, Path::new("(image)")).unwrap();
         let gap = map.preop_gap(&g).unwrap();
         let m: f64 = (0.5 * h + 0.5f64).min(h);
         let (mut kept, mut wrong) = (0usize, 0usize);
@@ -256,7 +256,7 @@ fn the_field_at_a_deformed_node_is_minus_its_displacement() {
     let result =
         RunResult::new(Path::new("(test)"), mesh.clone(), u.clone(), Space::Ras, Units::Mm)
             .unwrap();
-    let map = InverseMap::new(&result, &g, Space::Ras, Path::new("(image)")).unwrap();
+    let map = InverseMap::new(&result, &g, Path::new("(image)")).unwrap();
     let field = map.field();
     let n = g.index(30, 31, 32);
     let d = Vector3::new(field[n][0] as f64, field[n][1] as f64, field[n][2] as f64);
@@ -354,13 +354,8 @@ fn labels_are_warped_by_nearest_voxel() {
     let out = d.join("warped-labels.nii.gz");
     warp_file(&d.join("run"), &path, &out, Some(0), None).unwrap();
     let warped = bs_image::nifti::read_labels(&out).unwrap();
-    let map = InverseMap::new(
-        &RunResult::load(&d.join("run")).unwrap(),
-        &g,
-        Space::Ras,
-        Path::new("(image)"),
-    )
-    .unwrap();
+    let map = InverseMap::new(&RunResult::load(&d.join("run")).unwrap(), &g, Path::new("(image)"))
+        .unwrap();
     for n in 0..g.len() {
         let expect = match (map.reference_point(n), map.mapped_point(n)) {
             // X = y − (3, 0, 0): the voxel three to the left, an exact voxel centre.
@@ -455,7 +450,7 @@ fn simpleitk_applying_the_exported_fields_gives_the_warp() {
     let ours = bs_image::nifti::read_image(&out).unwrap().volume;
     let preop = bs_image::nifti::read_image(&fx.join("preop.nii.gz")).unwrap().volume;
     let result = RunResult::load(&fx.join("run")).unwrap();
-    let map = InverseMap::new(&result, &preop.grid, Space::Ras, Path::new("preop")).unwrap();
+    let map = InverseMap::new(&result, &preop.grid, Path::new("preop")).unwrap();
     let mask: Vec<bool> = (0..preop.grid.len()).map(|n| map.reference_point(n).is_some()).collect();
     let (lo, hi) = preop.data.iter().fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
     let range = (hi - lo) as f64;
@@ -528,8 +523,8 @@ fn a_grid_with_an_oblique_flipped_affine_gives_the_same_reference_points() {
     m[(3, 3)] = 1.0;
     let g2 = Grid::new([64, 64, 64], m).unwrap();
     let g1 = grid();
-    let m1 = InverseMap::new(&result, &g1, Space::Ras, Path::new("a")).unwrap();
-    let m2 = InverseMap::new(&result, &g2, Space::Ras, Path::new("b")).unwrap();
+    let m1 = InverseMap::new(&result, &g1, Path::new("a")).unwrap();
+    let m2 = InverseMap::new(&result, &g2, Path::new("b")).unwrap();
     assert_eq!(m1.inside_count(), m2.inside_count());
     for (i, j, k) in [(20, 30, 25), (15, 40, 33), (35, 22, 41)] {
         let y = g1.world([i as f64, j as f64, k as f64]);
