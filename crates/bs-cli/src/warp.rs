@@ -51,27 +51,12 @@ fn draw_preview(
     image: &Path,
     p: &bs_scene::planes::Planes,
 ) -> Result<(), bs_preview::PreviewError> {
-    let slices: Vec<bs_preview::Slice> = p
-        .planes
-        .iter()
-        .map(|q| bs_preview::Slice {
-            title: q.title.clone(),
-            width: q.width,
-            height: q.height,
-            spacing: q.spacing,
-            before: q.before.clone(),
-            after: q.after.clone(),
-            magnitude: q.magnitude.clone(),
-            inside: q.inside.clone(),
-            marker: q.marker,
-        })
-        .collect();
     let name = image.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let title = format!(
         "{name}: brain shift, largest displacement {:.1} mm; slices through voxel ({}, {}, {})",
         p.max_mm, p.voxel[0], p.voxel[1], p.voxel[2]
     );
-    bs_preview::render(path, &title, &slices, p.window, p.max_mm)
+    bs_preview::render(path, &title, &p.planes, p.window, p.max_mm)
 }
 
 /// The lines `warp` and `field` print.

@@ -20,9 +20,11 @@ mod mha;
 pub mod nifti;
 pub mod nrrd;
 pub mod sample;
+mod slice;
 mod space;
 
 pub use error::ImageError;
 pub use grid::{Grid, Volume};
 pub use mha::write_displacement_mha;
+pub use slice::Slice;
 pub use space::Space;

@@ -8,37 +8,15 @@
 //! Text is drawn with the embedded DejaVu Sans (assets/, Bitstream Vera licence), so no
 //! system font is needed.
 //!
-//! *Architecture invariant:* bs-preview depends on no other brainshift crate; bs-scene
-//! cuts the slices, front ends call [`render`].
+//! *Architecture invariant:* bs-preview knows bs-image's [`Slice`] (plain data) and
+//! bs-atomic's writer, nothing else of brainshift; bs-scene cuts the slices, front ends
+//! call [`render`].
 
 use std::path::Path;
 use std::sync::Once;
 
+pub use bs_image::Slice;
 use plotters::prelude::*;
-
-/// One plane of the three pictures: values on a `width × height` grid (first index
-/// fastest, row 0 at the bottom), pixel size in mm, and where the deformed brain is.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Slice {
-    /// Title of the row (e.g. "axial, k = 120").
-    pub title: String,
-    /// Horizontal and vertical sample counts.
-    pub width: usize,
-    /// Vertical sample count.
-    pub height: usize,
-    /// Horizontal and vertical sample spacing (mm).
-    pub spacing: [f64; 2],
-    /// The pre-operative image.
-    pub before: Vec<f32>,
-    /// The warped image.
-    pub after: Vec<f32>,
-    /// |d| (mm).
-    pub magnitude: Vec<f32>,
-    /// Inside the deformed brain.
-    pub inside: Vec<bool>,
-    /// The marker: the point of largest displacement, in samples.
-    pub marker: [usize; 2],
-}
 
 /// What went wrong drawing or writing the picture.
 #[derive(Debug)]

@@ -3,36 +3,13 @@
 //! plain numbers (the front end draws them). Planes are index planes of the image grid
 //! (k: axial, j: coronal, i: sagittal for an image stored in RAS-like order).
 
-use bs_image::{Grid, Volume};
-
-/// One plane (first index fastest, row 0 at the bottom).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Plane {
-    /// "axial (k = 97)" and the like.
-    pub title: String,
-    /// Samples along the horizontal axis.
-    pub width: usize,
-    /// Samples along the vertical axis.
-    pub height: usize,
-    /// Sample spacing, horizontal and vertical (mm).
-    pub spacing: [f64; 2],
-    /// Pre-operative values.
-    pub before: Vec<f32>,
-    /// Warped values.
-    pub after: Vec<f32>,
-    /// |d| (mm).
-    pub magnitude: Vec<f32>,
-    /// Inside the deformed brain.
-    pub inside: Vec<bool>,
-    /// The largest displacement, in samples.
-    pub marker: [usize; 2],
-}
+use bs_image::{Grid, Slice, Volume};
 
 /// The three planes with the grey window and the top of the colour scale.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Planes {
     /// Axial, coronal, sagittal.
-    pub planes: Vec<Plane>,
+    pub planes: Vec<Slice>,
     /// Grey levels shown black and white (the 1st and 99.5th percentiles of the image).
     pub window: [f32; 2],
     /// The largest |d| (mm).
@@ -68,7 +45,7 @@ pub fn planes(
         .iter()
         .map(|&(name, a, b, fixed)| {
             let (w, h) = (dims[a], dims[b]);
-            let mut p = Plane {
+            let mut p = Slice {
                 title: format!("{name} ({} = {})", ["i", "j", "k"][fixed], v[fixed]),
                 width: w,
                 height: h,

@@ -14,7 +14,7 @@ pub const ALLOWED: &[(&str, &[&str])] = &[
     ("bs-mesh", &["bs-atomic"]),
     ("bs-material", &[]),
     ("bs-image", &["bs-atomic"]),
-    ("bs-preview", &["bs-atomic"]),
+    ("bs-preview", &["bs-atomic", "bs-image"]),
     ("bs-meshgen", &["bs-mesh", "bs-image"]),
     ("bs-contact", &["bs-mesh"]),
     ("bs-dr", &["bs-mesh", "bs-material"]),
