@@ -35,13 +35,12 @@ pub fn run(
     let threads = rayon::current_num_threads();
     match sweep::run_row(dir, index, threads, &mut |_| {})? {
         RowOutcome::Ran(out) if !quiet => {
-            let report = std::fs::read_to_string(out.join("report.json")).unwrap_or_default();
-            let json: serde_json::Value = serde_json::from_str(&report).unwrap_or_default();
+            let report = bs_scene::output::RunReport::read(&out.join("report.json"))?;
             crate::emit(&format!(
                 "row {index}: converged, max displacement {} {}, {:.3} s solve; wrote {}\n",
-                json["max_displacement"],
-                json["units"].as_str().unwrap_or(""),
-                json["solve_seconds"].as_f64().unwrap_or(f64::NAN),
+                report.max_displacement,
+                report.units,
+                report.solve_seconds,
                 out.display()
             ));
         }

@@ -91,6 +91,26 @@ fn mni152_brain_converges_with_contact_and_no_node_outside() {
     assert_contact_scene("mni152", "mni152");
 }
 
+/// report.json read back typed (`RunReport::read`, as registration and sweeps read it)
+/// holds every key it was written with, with the same values (the column's gravity
+/// included).
+#[test]
+fn report_json_reads_back_typed_with_every_key() {
+    for (k, scene) in
+        ["fixtures/cube/uniaxial-t4.toml", "fixtures/column/scene.toml"].iter().enumerate()
+    {
+        let scene = root().join(scene);
+        let dir = TempDir::new_in("run", &format!("typed-report-{k}"));
+        let (written, _) = run_scene(&scene, &dir.0);
+        let typed = bs_scene::output::RunReport::read(&dir.0.join("report.json")).unwrap();
+        let back = serde_json::to_value(&typed).unwrap();
+        for (key, value) in written.as_object().unwrap() {
+            assert_eq!(&back[key], value, "{}: key {key}", scene.display());
+        }
+        assert!(typed.converged && typed.units == "mm", "{typed:?}");
+    }
+}
+
 /// `check --json` prints the report the library builds, field for field, and the text
 /// names each region's material as the scene spells it.
 #[test]

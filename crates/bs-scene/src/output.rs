@@ -18,8 +18,11 @@ use crate::SceneError;
 use crate::prepare::Prepared;
 use crate::run::{Run, Solved};
 
-/// The machine-readable summary written to report.json.
-#[derive(Debug, Serialize)]
+/// The machine-readable summary written to report.json, and read back typed
+/// ([`RunReport::read`]: registration and sweeps). A key an older report lacks reads as its
+/// default (0, empty, absent).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, serde::Deserialize)]
+#[serde(default)]
 pub struct RunReport {
     /// Always true in a written report: a failed run writes no report.
     pub converged: bool,
@@ -87,7 +90,7 @@ pub struct RunReport {
     /// Largest nodal displacement magnitude.
     pub max_displacement: f64,
     /// `"newton-krylov"`, `"dr"` or `"newton"`.
-    pub solver: &'static str,
+    pub solver: String,
     /// `"t4"`, `"t4anp"` or `"h8"`.
     pub element: String,
     /// Contact handler, or `"none"`.
@@ -101,9 +104,9 @@ pub struct RunReport {
     /// Threads used.
     pub threads: usize,
     /// Length unit of all lengths in this report.
-    pub units: &'static str,
+    pub units: String,
     /// Anatomical frame of the mesh, the displacements and every output (`"RAS"`/`"LPS"`).
-    pub space: &'static str,
+    pub space: String,
     /// Per `[[measurement]]`: what the fit did (points, inliers, residuals after the fit,
     /// the rigid correction, how far the data moved the model). Empty without measurements.
     pub measurements: Vec<crate::measure::MeasurementReport>,
@@ -115,8 +118,18 @@ pub struct RunReport {
     pub resected: Option<ResectedReport>,
 }
 
+impl RunReport {
+    /// Reads a report.json (as `brainshift run` writes it).
+    pub fn read(path: &Path) -> Result<RunReport, String> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+        serde_json::from_str(&text)
+            .map_err(|e| format!("{}: not a brainshift report: {e}", path.display()))
+    }
+}
+
 /// The report's account of a resection.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ResectedReport {
     /// The resected regions' element sets.
     pub regions: Vec<String>,
@@ -191,15 +204,15 @@ pub fn report(run: &Run, s: &Solved, ctx: RunContext) -> RunReport {
         equilibrium_residual: v.equilibrium_residual,
         equilibrium_bound: v.equilibrium_bound,
         max_displacement: u.iter().map(|d| d.norm()).fold(0.0, f64::max),
-        solver: p.scene.solver.kind.name(),
+        solver: p.scene.solver.kind.name().to_string(),
         element: p.element.name().to_string(),
         algorithm: p.scene.contact.as_ref().map_or("none", |c| c.algorithm.name()).to_string(),
         nodes: p.mesh.nodes.len(),
         elements: p.mesh.elements.len(),
         slave_nodes: c.slaves.len(),
         threads: ctx.threads,
-        units: p.scene.units.symbol(),
-        space: p.scene.space.space().name(),
+        units: p.scene.units.symbol().to_string(),
+        space: p.scene.space.space().name().to_string(),
         measurements: s.measurements.clone(),
         gravity: p.scene.gravity.as_ref().map(|g| g.direction),
         resected: p.resection.as_ref().map(|r| ResectedReport {

@@ -72,19 +72,10 @@ impl RunResult {
                 report.display()
             )));
         }
-        let text = std::fs::read_to_string(&report)
-            .map_err(|e| err(format!("{}: cannot read: {e}", report.display())))?;
-        let json: serde_json::Value = serde_json::from_str(&text)
-            .map_err(|e| err(format!("{}: not JSON: {e}", report.display())))?;
+        let read = crate::output::RunReport::read(&report).map_err(err)?;
         let mut notes = Vec::new();
-        let space = match json.get("space").and_then(|s| s.as_str()) {
-            Some(s) => Space::from_name(s).ok_or_else(|| {
-                err(format!(
-                    "{}: \"space\" is \"{s}\"; expected \"RAS\" or \"LPS\"",
-                    report.display()
-                ))
-            })?,
-            None => {
+        let space = match read.space.as_str() {
+            "" => {
                 notes.push(format!(
                     "{} names no \"space\" (written before frames were recorded): the mesh is \
                      taken as RAS; re-run the scene to record it",
@@ -92,10 +83,16 @@ impl RunResult {
                 ));
                 Space::Ras
             }
+            s => Space::from_name(s).ok_or_else(|| {
+                err(format!(
+                    "{}: \"space\" is \"{s}\"; expected \"RAS\" or \"LPS\"",
+                    report.display()
+                ))
+            })?,
         };
-        let units = match json.get("units").and_then(|s| s.as_str()) {
-            Some("mm") => Units::Mm,
-            Some("m") => Units::M,
+        let units = match read.units.as_str() {
+            "mm" => Units::Mm,
+            "m" => Units::M,
             other => {
                 return Err(err(format!(
                     "{}: \"units\" is {other:?}; expected \"mm\" or \"m\"",
@@ -139,7 +136,7 @@ impl RunResult {
         let skull = if skull_file.is_file() {
             Some(bs_mesh::io::read_surface(&skull_file).map_err(|e| err(e.to_string()))?)
         } else {
-            if json.get("algorithm").and_then(|a| a.as_str()).is_some_and(|a| a != "none") {
+            if !read.algorithm.is_empty() && read.algorithm != "none" {
                 notes.push(format!(
                     "{} names a contact algorithm but {} is missing (a result written before \
                      the skull was kept with it): the map outside the brain decays over a band \
@@ -150,7 +147,7 @@ impl RunResult {
             }
             None
         };
-        let resected = json.get("resected").is_some_and(|r| !r.is_null());
+        let resected = read.resected.is_some();
         RunResult::new(dir, mesh, displacements, space, units).map(|mut r| {
             r.notes.extend(notes);
             r.skull = skull;

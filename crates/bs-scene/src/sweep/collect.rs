@@ -168,14 +168,12 @@ pub fn collect(dir: &Path, points: &[NamedPoint]) -> Result<Summary, SweepError>
         };
         if has_report(&out) {
             r.status = Status::Ok;
-            let report: serde_json::Value = std::fs::read_to_string(out.join("report.json"))
-                .ok()
-                .and_then(|t| serde_json::from_str(&t).ok())
-                .unwrap_or_default();
-            r.max_displacement = report["max_displacement"].as_f64();
-            r.nodes_in_contact = report["nodes_in_contact"].as_u64();
-            r.solve_seconds = report["solve_seconds"].as_f64();
-            r.units = report["units"].as_str().map(str::to_string);
+            if let Ok(report) = crate::output::RunReport::read(&out.join("report.json")) {
+                r.max_displacement = Some(report.max_displacement);
+                r.nodes_in_contact = Some(report.nodes_in_contact as u64);
+                r.solve_seconds = Some(report.solve_seconds);
+                r.units = Some(report.units);
+            }
             if !points.is_empty() {
                 match at_points(dir, &row.scene, &out, points, &mut located) {
                     Ok(values) => r.at_points = values.into_iter().map(Some).collect(),

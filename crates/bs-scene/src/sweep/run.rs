@@ -29,10 +29,7 @@ pub fn row_dir(dir: &Path, index: usize) -> PathBuf {
 
 /// True when `runs/I/report.json` is a complete report of a converged run.
 pub(crate) fn has_report(row: &Path) -> bool {
-    std::fs::read_to_string(row.join("report.json"))
-        .ok()
-        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
-        .is_some_and(|v| v["converged"] == true && v["max_displacement"].is_number())
+    crate::output::RunReport::read(&row.join("report.json")).is_ok_and(|r| r.converged)
 }
 
 /// Runs row `index` of the sweep in `dir` (see the module documentation). `threads` is
