@@ -11,7 +11,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use bs_mesh::Vector3;
-use bs_scene::registration::{InverseMap, RunResult};
+use bs_register::registration::{InverseMap, RunResult};
 use bs_scene::{BoundaryLoad, Prepared, Session, Solved};
 
 fn craniotomy(d: f64) -> Vec<(String, BoundaryLoad)> {

@@ -11,7 +11,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use bs_mesh::{Mesh, Point3};
-use bs_scene::registration::{InverseMap, OutsideChoice, RunResult};
+use bs_register::registration::{InverseMap, OutsideChoice, RunResult};
 use bs_scene::{Prepared, Run};
 
 fn best<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {

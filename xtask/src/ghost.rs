@@ -16,7 +16,7 @@ use std::path::Path;
 
 use bs_image::Volume;
 use bs_mesh::{Point3, Vector3};
-use bs_scene::registration::{InverseMap, OutsideChoice, RunResult};
+use bs_register::registration::{InverseMap, OutsideChoice, RunResult};
 use bs_scene::{Prepared, Run};
 use rayon::prelude::*;
 

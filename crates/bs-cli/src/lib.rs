@@ -1,7 +1,7 @@
 //! The `brainshift` command-line program: one module per command, each a thin front end
 //! (argument handling, progress, printing) over `bs-scene` (scenes, runs, checks) and
 //! `bs-mesh` (`inspect`); `warp` and `field` apply a result to images through
-//! `bs_scene::registration`.
+//! `bs_register::registration`.
 
 pub mod check;
 pub mod demo;

@@ -1,12 +1,12 @@
 //! `brainshift warp --image PREOP --result RUNDIR --out WARPED`: the pre-operative image
 //! resampled into the intra-operative configuration of a run's result
-//! ([`bs_scene::registration::warp_file`]).
+//! ([`bs_register::registration::warp_file`]).
 
 use std::path::Path;
 use std::process::ExitCode;
 
-use bs_scene::outside::{Boundary, OutsideReport};
-use bs_scene::registration::Summary;
+use bs_register::outside::{Boundary, OutsideReport};
+use bs_register::registration::Summary;
 
 /// Runs `warp` and prints what it did; with `preview`, also draws the three planes through
 /// the largest displacement (or the point given with it, RAS mm) into that PNG.
@@ -35,7 +35,7 @@ pub fn run(
         .into());
     }
     let summary =
-        bs_scene::registration::warp_file(result, image, out, labels, preview.map(|_| at))?;
+        bs_register::registration::warp_file(result, image, out, labels, preview.map(|_| at))?;
     let sampling = if labels.is_some() { "nearest label" } else { "trilinear" };
     print_summary("warped", &summary, sampling);
     if let (Some(path), Some(planes)) = (preview, &summary.planes) {
@@ -49,7 +49,7 @@ pub fn run(
 fn draw_preview(
     path: &Path,
     image: &Path,
-    p: &bs_scene::planes::Planes,
+    p: &bs_register::planes::Planes,
 ) -> Result<(), bs_preview::PreviewError> {
     let name = image.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let title = format!(

@@ -27,7 +27,7 @@ pub(crate) fn raise(py: Python<'_>, kind: &str, message: String, write: bool) ->
 
 /// The Python exception of an image that cannot be read (BrainshiftError, kind "Image").
 pub(crate) fn image_error(py: Python<'_>, e: bs_image::ImageError) -> PyErr {
-    scene_err(py, bs_scene::registration::image_error(e))
+    scene_err(py, bs_register::registration::image_error(e))
 }
 
 pub(crate) fn scene_err(py: Python<'_>, e: SceneError) -> PyErr {

@@ -28,11 +28,11 @@ pub(crate) struct Image {
 type Gap = Arc<Option<Vec<bool>>>;
 
 impl Image {
-    /// This image warped by `result` (as `bs_scene::registration::warp_loaded`), through
+    /// This image warped by `result` (as `bs_register::registration::warp_loaded`), through
     /// the pre-operative gap this image keeps.
     pub(crate) fn warp(
         &self,
-        result: &bs_scene::registration::RunResult,
+        result: &bs_register::registration::RunResult,
     ) -> Result<Volume<f32>, bs_scene::SceneError> {
         let (map, gap) = self.map_and_gap(result)?;
         let data = map.warp_with_gap(&self.volume, &self.volume.data, gap.as_deref());
@@ -40,10 +40,10 @@ impl Image {
     }
 
     /// The displacement field of `result` on this image's grid (as
-    /// `bs_scene::registration::field_on`), through the pre-operative gap this image keeps.
+    /// `bs_register::registration::field_on`), through the pre-operative gap this image keeps.
     pub(crate) fn field(
         &self,
-        result: &bs_scene::registration::RunResult,
+        result: &bs_register::registration::RunResult,
     ) -> Result<Volume<[f32; 3]>, bs_scene::SceneError> {
         let (map, gap) = self.map_and_gap(result)?;
         Ok(Volume { grid: self.volume.grid.clone(), data: map.field_with_gap(gap.as_deref()) })
@@ -52,16 +52,17 @@ impl Image {
     /// The inverse map of `result` on this image's grid and the pre-operative gap it samples.
     fn map_and_gap(
         &self,
-        result: &bs_scene::registration::RunResult,
-    ) -> Result<(bs_scene::registration::InverseMap, Gap), bs_scene::SceneError> {
-        let map = bs_scene::registration::InverseMap::new(result, &self.volume.grid, &self.path)?;
+        result: &bs_register::registration::RunResult,
+    ) -> Result<(bs_register::registration::InverseMap, Gap), bs_scene::SceneError> {
+        let map =
+            bs_register::registration::InverseMap::new(result, &self.volume.grid, &self.path)?;
         let gap = self.preop_gap(&map);
         Ok((map, gap))
     }
 
     /// The pre-operative gap of `map` on this image's grid, computed on the first ask for
     /// the map's reference mesh and skull and kept for the next.
-    fn preop_gap(&self, map: &bs_scene::registration::InverseMap) -> Gap {
+    fn preop_gap(&self, map: &bs_register::registration::InverseMap) -> Gap {
         if map.gap_voxels().is_empty() {
             return Arc::new(None); // nothing between brain and skull samples it
         }
@@ -114,7 +115,7 @@ impl Image {
 /// displacement field from it without building it again.
 #[pyclass(module = "brainshift", frozen)]
 pub(crate) struct InverseMap {
-    pub(crate) map: bs_scene::registration::InverseMap,
+    pub(crate) map: bs_register::registration::InverseMap,
     pub(crate) grid: Grid,
     /// The pre-operative gap on the grid, from the image `warp` was given (an image keeps
     /// it for a session's maps) or computed by the first `field()`.
@@ -157,8 +158,8 @@ impl InverseMap {
         let Some(o) = self.map.outside_report() else { return Ok(None) };
         let d = PyDict::new(py);
         match o.boundary {
-            bs_scene::outside::Boundary::Skull => d.set_item("boundary", "skull")?,
-            bs_scene::outside::Boundary::Band(w) => d.set_item("boundary", w)?,
+            bs_register::outside::Boundary::Skull => d.set_item("boundary", "skull")?,
+            bs_register::outside::Boundary::Band(w) => d.set_item("boundary", w)?,
         }
         d.set_item("gap_voxels", o.gap_voxels)?;
         d.set_item("iterations", o.iterations)?;

@@ -45,10 +45,10 @@ impl RunResult {
 impl RunResult {
     /// This result as the registration outputs read it (mesh, displacements, frame, unit,
     /// skull).
-    fn registration(&self, py: Python<'_>) -> PyResult<bs_scene::registration::RunResult> {
+    fn registration(&self, py: Python<'_>) -> PyResult<bs_register::registration::RunResult> {
         let guard = self.inner.lock().unwrap_or_else(|e| e.into_inner());
         let (p, solved) = &*guard;
-        bs_scene::registration::RunResult::new(
+        bs_register::registration::RunResult::new(
             &p.path,
             p.mesh.clone(),
             solved.solution.displacements.clone(),
@@ -159,7 +159,9 @@ impl RunResult {
         let v = match (&image, labels) {
             (ImageArg::File(p), true) => {
                 let v = py
-                    .detach(|| bs_scene::registration::warp_labels_volume(&result, p, cavity_label))
+                    .detach(|| {
+                        bs_register::registration::warp_labels_volume(&result, p, cavity_label)
+                    })
                     .map_err(|e| scene_err(py, e))?;
                 let a = affine(py, v.grid.voxel_to_world());
                 return Ok((volume_array(py, v.grid.dims(), v.data, 1)?, a));
@@ -173,7 +175,7 @@ impl RunResult {
                 py.detach(|| i.warp(&result)).map_err(|e| scene_err(py, e))?
             }
             (ImageArg::File(p), false) => py
-                .detach(|| bs_scene::registration::warp_volume(&result, p))
+                .detach(|| bs_register::registration::warp_volume(&result, p))
                 .map_err(|e| scene_err(py, e))?,
         };
         Ok((volume_array(py, v.grid.dims(), v.data, 1)?, affine(py, v.grid.voxel_to_world())))
@@ -194,7 +196,7 @@ impl RunResult {
             ImageArg::Loaded(i) => py.detach(|| i.field(&result)),
             ImageArg::File(p) => {
                 let grid = reference.grid(py)?;
-                py.detach(|| bs_scene::registration::field_on(&result, &grid, p))
+                py.detach(|| bs_register::registration::field_on(&result, &grid, p))
             }
         }
         .map_err(|e| scene_err(py, e))?;
@@ -211,7 +213,7 @@ impl RunResult {
         let grid = image.grid(py)?;
         let path = image.path().to_path_buf();
         let map = py
-            .detach(|| bs_scene::registration::InverseMap::new(&result, &grid, &path))
+            .detach(|| bs_register::registration::InverseMap::new(&result, &grid, &path))
             .map_err(|e| scene_err(py, e))?;
         Ok(image::InverseMap { map, grid, gap: std::sync::OnceLock::new() })
     }

@@ -13,10 +13,8 @@
 //! * [`solve`]: the solver a scene asks for, prepared once and driven with an observer;
 //! * [`verify`]: the result checked independently of the solver (contact, J, equilibrium);
 //! * [`run`] and [`output`]: the verified run of a scene and its three files;
-//! * [`registration`]: a run's result read back and applied to images (the pre-operative
-//!   image warped into the intra-operative configuration, the displacement field for ITK
-//!   and 3D Slicer), with [`outside`]: the map between the deformed brain and the skull,
-//!   and [`planes`]: the slices a preview picture shows;
+//! * (a run's result applied to images — the warp, the field, the preview's planes — is
+//!   bs-register's, above this crate);
 //! * [`check`]: everything `run` does before solving, with [`memory`] and [`advice`];
 //! * [`study`]: one scene solved with variations (what validation, charts and stability
 //!   maps measure), [`verdict`]: how such a run ended, and [`findings`]: the
@@ -57,11 +55,8 @@ pub mod measure;
 pub mod memory;
 pub mod mesh_scene;
 pub mod output;
-pub mod outside;
-pub mod planes;
 pub mod prepare;
 pub mod region_effect;
-pub mod registration;
 pub mod resection;
 pub mod run;
 pub mod scene;

@@ -23,8 +23,9 @@ pub const ALLOWED: &[(&str, &[&str])] = &[
         "bs-scene",
         &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-fit", "bs-image", "bs-meshgen"],
     ),
-    ("bs-cli", &["bs-mesh", "bs-dr", "bs-contact", "bs-scene", "bs-preview"]),
-    ("bs-py", &["bs-mesh", "bs-contact", "bs-scene", "bs-image"]),
+    ("bs-register", &["bs-mesh", "bs-image", "bs-meshgen", "bs-scene"]),
+    ("bs-cli", &["bs-mesh", "bs-dr", "bs-contact", "bs-scene", "bs-register", "bs-preview"]),
+    ("bs-py", &["bs-mesh", "bs-contact", "bs-scene", "bs-register", "bs-image"]),
     (
         "xtask",
         &[
@@ -34,6 +35,7 @@ pub const ALLOWED: &[(&str, &[&str])] = &[
             "bs-contact",
             "bs-fit",
             "bs-scene",
+            "bs-register",
             "bs-image",
             "bs-meshgen",
         ],

@@ -1,4 +1,4 @@
-//! Registration outputs (`bs_scene::registration`): the warp and the displacement field
+//! Registration outputs (`bs_register::registration`): the warp and the displacement field
 //! checked against closed forms (translations and affine maps, for which the
 //! piecewise-linear FE map is exact), against the node positions (d(X + u) = −u), and
 //! against SimpleITK applying a field brainshift exported (fixtures/registration).
@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 use bs_image::{Grid, Space, Volume};
 use bs_mesh::io::{Field, Fields};
 use bs_mesh::{Mesh, Point3, Vector3};
+use bs_register::registration::{GAP_SEARCH_VOXELS, InverseMap, RunResult, field_file, warp_file};
 use bs_scene::SceneError;
-use bs_scene::registration::{GAP_SEARCH_VOXELS, InverseMap, RunResult, field_file, warp_file};
 use bs_scene::scene::Units;
 use nalgebra::{Matrix3, Matrix4};
 

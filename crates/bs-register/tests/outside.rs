@@ -1,4 +1,4 @@
-//! The map outside the deformed brain (`bs_scene::outside`) against the closed form of the
+//! The map outside the deformed brain (`bs_register::outside`) against the closed form of the
 //! simplest case: a ball translated inside a spherical skull (the result is given: every
 //! node moves by the same t, no solve). The brain's voxels sample the translated ball
 //! exactly; the crescent the ball vacated must sample the old gap (the pre-operative
@@ -9,7 +9,7 @@ use std::path::Path;
 
 use bs_image::{Grid, Space, Volume};
 use bs_mesh::{Point3, TriSurface, Vector3};
-use bs_scene::registration::{InverseMap, OutsideChoice, RunResult};
+use bs_register::registration::{InverseMap, OutsideChoice, RunResult};
 use bs_scene::scene::Units;
 
 const R_BALL: f64 = 50.0;

@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 use bs_image::{Space, Volume};
 use bs_mesh::Vector3;
 use bs_mesh::lattice::{LatticeLocation, OUTSIDE, tetrahedra};
-use bs_scene::registration::{InverseMap, OutsideChoice, RunResult};
+use bs_register::registration::{InverseMap, OutsideChoice, RunResult};
 use bs_scene::{Prepared, Run};
 
 fn fx() -> PathBuf {

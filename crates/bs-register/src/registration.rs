@@ -29,9 +29,9 @@ use bs_mesh::{Mesh, Point3, TriSurface, Vector3};
 use nalgebra::Matrix4;
 use rayon::prelude::*;
 
-use crate::SceneError;
 use crate::outside::{Outside, OutsideReport};
-use crate::scene::Units;
+use bs_scene::SceneError;
+use bs_scene::scene::Units;
 
 /// A run's result read back from its directory.
 #[derive(Debug, Clone)]
@@ -72,7 +72,7 @@ impl RunResult {
                 report.display()
             )));
         }
-        let read = crate::output::RunReport::read(&report).map_err(err)?;
+        let read = bs_scene::output::RunReport::read(&report).map_err(err)?;
         let mut notes = Vec::new();
         let space = match read.space.as_str() {
             "" => {
