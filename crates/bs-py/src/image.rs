@@ -10,8 +10,7 @@ use numpy::PyArray2;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::convert::image_error;
-use crate::result::{affine, volume_array};
+use crate::convert::{affine, image_error, volume_array};
 
 /// An image read into memory: its values (float32) on its grid, voxel index to RAS (mm).
 #[pyclass(module = "brainshift", frozen)]

@@ -11,9 +11,13 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::convert::{from_json, scene_err};
+use crate::convert::{affine, from_json, scene_err, volume_array};
 use crate::image;
 use crate::image::ImageArg;
+
+/// A surface as numpy arrays: points (k, 3), triangles (t, 3), the node of each point (k).
+type Surface<'py> =
+    (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<i64>>, Bound<'py, PyArray1<i64>>);
 
 /// A verified run: displacements, node ids, the report, and `write(dir)`.
 #[pyclass(module = "brainshift", name = "Result", frozen)]
@@ -62,40 +66,6 @@ impl RunResult {
         })
         .map_err(|e| scene_err(py, e))
     }
-}
-
-/// A volume's values (`per_voxel` per voxel, i fastest) as a numpy array (nx, ny, nz) or
-/// (nx, ny, nz, per_voxel), without a copy: the array is in Fortran order (i fastest), so
-/// `a.transpose()` is C-contiguous (nz, ny, nx), the (k, j, i) layout of OpenIGTLink and
-/// of ITK.
-pub(crate) fn volume_array<'py, T: numpy::Element + Copy>(
-    py: Python<'py>,
-    [nx, ny, nz]: [usize; 3],
-    data: Vec<T>,
-    per_voxel: usize,
-) -> PyResult<Bound<'py, PyAny>> {
-    let err = |e: numpy::ndarray::ShapeError| PyValueError::new_err(e.to_string());
-    if per_voxel == 1 {
-        let a = numpy::ndarray::Array3::from_shape_vec((nz, ny, nx), data).map_err(err)?;
-        Ok(a.permuted_axes([2, 1, 0]).into_pyarray(py).into_any())
-    } else {
-        let a =
-            numpy::ndarray::Array4::from_shape_vec((nz, ny, nx, per_voxel), data).map_err(err)?;
-        Ok(a.permuted_axes([2, 1, 0, 3]).into_pyarray(py).into_any())
-    }
-}
-
-/// A surface as numpy arrays: points (k, 3), triangles (t, 3), the node of each point (k).
-type Surface<'py> =
-    (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<i64>>, Bound<'py, PyArray1<i64>>);
-
-/// A 4×4 matrix as a numpy array.
-pub(crate) fn affine<'py>(
-    py: Python<'py>,
-    m: &bs_mesh::nalgebra::Matrix4<f64>,
-) -> Bound<'py, PyArray2<f64>> {
-    let rows: Vec<f64> = (0..4).flat_map(|i| (0..4).map(move |j| m[(i, j)])).collect();
-    Array2::from_shape_vec((4, 4), rows).expect("4 x 4").into_pyarray(py)
 }
 
 #[pymethods]
