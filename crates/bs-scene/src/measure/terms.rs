@@ -48,12 +48,9 @@ pub fn compose_fits(p: &Prepared) -> Result<Option<FitState>, SceneError> {
     for m in &p.measurements {
         let (term, fit, kappa, area, pull) = match &m.data {
             MeasuredData::Surface { points, faces, face_elements, bone, slide, .. } => {
-                let mut composed = surface_term(p, m, points, faces, face_elements, bone.as_ref())?;
-                if let Term::Surface(term) = &mut composed.0 {
-                    let mu = tissue_modulus(p, face_elements);
-                    term.set_slide(slide_prior(term, *slide, mu));
-                }
-                composed
+                let scan =
+                    Scan { points, faces, face_elements, bone: bone.as_ref(), slide: *slide };
+                surface_term(p, m, &scan)?
             }
             MeasuredData::Landmarks { pairs, anchors, .. } => landmark_term(m, pairs, anchors),
         };
@@ -78,26 +75,30 @@ pub fn compose_fits(p: &Prepared) -> Result<Option<FitState>, SceneError> {
 /// and how far it pulls.
 type Composed = (Term, Option<RigidFit>, f64, f64, f64);
 
-/// A scan's term: misalignment undone, stiffness per area from the tissue under it.
-fn surface_term(
-    p: &Prepared,
-    m: &Measured,
-    points: &[Point3<f64>],
-    faces: &[[usize; 3]],
-    face_elements: &[usize],
-    bone: Option<&(std::path::PathBuf, Vec<Point3<f64>>)>,
-) -> Result<Composed, SceneError> {
-    let fit = match bone {
+/// What a scan measurement holds (the fields of `MeasuredData::Surface`).
+struct Scan<'a> {
+    points: &'a [Point3<f64>],
+    faces: &'a [[usize; 3]],
+    face_elements: &'a [usize],
+    bone: Option<&'a (std::path::PathBuf, Vec<Point3<f64>>)>,
+    slide: Option<Option<bs_mesh::Vector3<f64>>>,
+}
+
+/// A scan's term: misalignment undone, stiffness per area and sliding prior from the tissue
+/// under it.
+fn surface_term(p: &Prepared, m: &Measured, scan: &Scan<'_>) -> Result<Composed, SceneError> {
+    let fit = match scan.bone {
         Some((_, b)) if m.rigid => Some(estimate_rigid(p, m, b)?),
         _ => None,
     };
     let corrected: Vec<Point3<f64>> = match &fit {
-        Some(f) => points.iter().map(|q| f.rigid.apply(q)).collect(),
-        None => points.to_vec(),
+        Some(f) => scan.points.iter().map(|q| f.rigid.apply(q)).collect(),
+        None => scan.points.to_vec(),
     };
-    let mu = tissue_modulus(p, face_elements);
+    let mu = tissue_modulus(p, scan.face_elements);
     let params = SurfaceParams { sigma: m.sigma, stiffness: 1.0, max_distance: m.max_distance };
-    let mut term = SurfaceFit::new(corrected, faces, &p.mesh.nodes, params);
+    let mut term = SurfaceFit::new(corrected, scan.faces, &p.mesh.nodes, params);
+    term.set_slide(slide_prior(&term, scan.slide, mu));
     let mut springs = Springs::new();
     term.linearise(&p.mesh.nodes, &mut springs);
     term.classify(&p.mesh.nodes);
