@@ -305,8 +305,8 @@ pub fn main() -> Result<(), String> {
         std::thread::available_parallelism().map(|n| n.get()).unwrap_or(0)
     );
     print!("{md}");
-    let path = crate::util::root().join("docs/contact-bench.md");
-    crate::util::write(&path, &md)?;
+    let path = bs_study::util::root().join("docs/contact-bench.md");
+    bs_study::util::write(&path, &md)?;
     println!("\nwritten to docs/contact-bench.md");
     if !same {
         return Err("coherent handler diverged from the paper handler".into());

@@ -31,10 +31,10 @@ use std::process::Command;
 use bs_mesh::{TetLocator, Vector3, transfer};
 use bs_scene::Prepared;
 use bs_scene::scene::SolverKind;
-use bs_scene::study::{Variant, difference};
+use bs_study::study::{Variant, difference};
 
-use crate::util::{replace_block, root};
-use bs_scene::calculix::{field, read_reference};
+use bs_study::calculix::{field, read_reference};
+use bs_study::util::{replace_block, root};
 
 /// The cases: name, scene, and the scene whose mesh the CalculiX reference was computed on.
 const CASES: [(&str, &str, &str); 5] = [

@@ -15,7 +15,7 @@ use std::time::Instant;
 use bs_mesh::{Point3, Vector3};
 use bs_scene::{BoundaryLoad, Prepared, Session};
 
-use crate::util::{replace_block, root};
+use bs_study::util::{replace_block, root};
 
 const REPEATS: usize = 3;
 const UPDATES: usize = 4;

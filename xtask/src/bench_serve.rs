@@ -4,7 +4,7 @@
 //! BRAINSHIFT_PYTHON, else the CI venv (`target/py-venv`, made by `.ci/python.sh`), else
 //! `python3`; it needs the `brainshift` package and pyigtl.
 
-use crate::util::root;
+use bs_study::util::root;
 
 pub fn main(args: &[String]) -> Result<(), String> {
     let root = root();

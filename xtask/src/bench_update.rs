@@ -45,7 +45,7 @@ fn median(v: &mut [f64]) -> f64 {
 
 /// Runs the benchmark (`--scene PATH`: another scene with a CRANIOTOMY node set).
 pub fn main(args: &[String]) -> Result<(), String> {
-    let root = crate::util::root();
+    let root = bs_study::util::root();
     let scene = match args {
         [flag, path] if flag == "--scene" => std::path::PathBuf::from(path),
         [] => root.join("fixtures/mni152/scene.toml"),

@@ -28,7 +28,7 @@ fn best<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {
 
 /// Runs the benchmark.
 pub fn main() -> Result<(), String> {
-    let root = crate::util::root();
+    let root = bs_study::util::root();
     let scene = root.join("fixtures/mni152/scene.toml");
     let t1 = root.join("fixtures/mni152/t1.nii.gz");
     let prepared = Prepared::load(&scene).map_err(|e| e.to_string())?;

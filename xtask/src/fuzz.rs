@@ -25,7 +25,7 @@ use std::time::{Duration, Instant};
 
 use bs_mesh::io::{inp, msh, obj, off, stl, vtk, vtu};
 
-use crate::util::root;
+use bs_study::util::root;
 
 /// A parse taking longer than this is a hang.
 pub const DEADLINE: Duration = Duration::from_secs(5);

@@ -45,18 +45,12 @@ mod bench_serve;
 mod bench_solver;
 mod bench_update;
 mod bench_warp;
-mod chart;
 mod deps;
-mod fit;
 mod fuzz;
-mod ghost;
-mod plot;
-mod reference;
-mod stability;
-mod util;
-mod validate;
 
 use std::process::ExitCode;
+
+use bs_study::{chart, fit, ghost, reference, stability, validate};
 
 /// The allocator, capped by `fuzz` during each input so that an allocation sized by a count
 /// in a file fails (and aborts, leaving the input behind) instead of exhausting the machine.

@@ -1,11 +1,11 @@
 //! `brainshift sweep plan|run|collect|emit-slurm`: parameter sweeps as folders
-//! ([`bs_scene::sweep`]): plan the rows, run any row anywhere (a laptop loop, a Slurm
+//! ([`bs_sweep`]): plan the rows, run any row anywhere (a laptop loop, a Slurm
 //! array, Dask workers), collect one table.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use bs_scene::sweep::{self, RowOutcome, SlurmOptions, Status};
+use bs_sweep::{self as sweep, RowOutcome, SlurmOptions, Status};
 
 /// `sweep plan SWEEP.toml --out DIR`.
 pub fn plan(sweep_file: &Path, out: &Path) -> Result<ExitCode, Box<dyn std::error::Error>> {

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use bs_mesh::{Point3, TriSurface};
 use bs_scene::SceneError;
-use bs_scene::sweep::SweepError;
+use bs_sweep::SweepError;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray2, PyReadonlyArray2};
 use pyo3::exceptions::{PyOSError, PyValueError};

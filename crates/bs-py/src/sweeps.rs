@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use bs_mesh::Point3;
-use bs_scene::sweep::{self, RowOutcome, SlurmOptions};
+use bs_sweep::{self as sweep, RowOutcome, SlurmOptions};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};

@@ -16,16 +16,13 @@
 //! * (a run's result applied to images — the warp, the field, the preview's planes — is
 //!   bs-register's, above this crate);
 //! * [`check`]: everything `run` does before solving, with [`memory`] and [`advice`];
-//! * [`study`]: one scene solved with variations (what validation, charts and stability
-//!   maps measure), [`verdict`]: how such a run ended, and [`findings`]: the
-//!   speed-versus-accuracy results, typed end to end.
+//! * [`findings`]: the speed-versus-accuracy results `check` advises from, typed end to end
+//!   (the studies that measure them are bs-study's, driven by `cargo xtask`).
 //!
 //! [`mesh_scene`] makes a scene folder from a labelmap (`brainshift mesh`, via bs-meshgen).
 //!
-//! [`sweep`] turns one scene into a parameter sweep: a folder of planned scenes, runs that
-//! any runner (a loop, a Slurm array, Dask workers) fills idempotently, and one table.
-//!
-//! [`calculix`] writes a scene as a CalculiX deck and reads the reference solutions back.
+//! (Parameter sweeps — a folder of planned scenes, runs any runner fills idempotently, and
+//! one table — are bs-sweep's, above this crate.)
 //!
 //! Every error is a [`SceneError`] naming the file and the key, set, node or element.
 //!
@@ -41,7 +38,6 @@
 
 pub mod advice;
 pub mod boundary;
-pub mod calculix;
 pub mod check;
 pub mod compose;
 mod error;
@@ -63,9 +59,6 @@ pub mod scene;
 pub mod session;
 pub mod skull_contact;
 pub mod solve;
-pub mod study;
-pub mod sweep;
-pub mod verdict;
 pub mod verify;
 
 pub use bs_dr::Progress;

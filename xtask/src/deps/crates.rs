@@ -24,8 +24,26 @@ pub const ALLOWED: &[(&str, &[&str])] = &[
         &["bs-mesh", "bs-material", "bs-dr", "bs-contact", "bs-fit", "bs-image", "bs-meshgen"],
     ),
     ("bs-register", &["bs-mesh", "bs-image", "bs-meshgen", "bs-scene"]),
-    ("bs-cli", &["bs-mesh", "bs-dr", "bs-contact", "bs-scene", "bs-register", "bs-preview"]),
-    ("bs-py", &["bs-mesh", "bs-contact", "bs-scene", "bs-register", "bs-image"]),
+    ("bs-sweep", &["bs-atomic", "bs-mesh", "bs-dr", "bs-scene"]),
+    (
+        "bs-study",
+        &[
+            "bs-mesh",
+            "bs-material",
+            "bs-dr",
+            "bs-contact",
+            "bs-fit",
+            "bs-scene",
+            "bs-register",
+            "bs-image",
+            "bs-meshgen",
+        ],
+    ),
+    (
+        "bs-cli",
+        &["bs-mesh", "bs-dr", "bs-contact", "bs-scene", "bs-register", "bs-sweep", "bs-preview"],
+    ),
+    ("bs-py", &["bs-mesh", "bs-contact", "bs-scene", "bs-register", "bs-sweep", "bs-image"]),
     (
         "xtask",
         &[
@@ -36,6 +54,7 @@ pub const ALLOWED: &[(&str, &[&str])] = &[
             "bs-fit",
             "bs-scene",
             "bs-register",
+            "bs-study",
             "bs-image",
             "bs-meshgen",
         ],
@@ -60,6 +79,10 @@ fn rule_for(from: &str, to: &str) -> &'static str {
             "bs-py is a front end like bs-cli: it calls bs-scene (and reads meshes and skulls \
              with bs-mesh and bs-contact, images with bs-image), so Python results are the \
              command's"
+        }
+        (_, "bs-study") => {
+            "bs-study is evidence, not product: only xtask drives it, so no front end or library \
+             carries the studies, charts and CalculiX runners"
         }
         ("xtask", "bs-cli") => {
             "xtask drives bs-scene, as every front end does, not the binary's code"
@@ -163,6 +186,15 @@ mod tests {
     fn material_depending_on_mesh_is_rejected() {
         let err = check(&workspace_with(("bs-material", "bs-mesh"))).unwrap_err();
         assert!(err.contains("bs-material -> bs-mesh"), "{err}");
+    }
+
+    #[test]
+    fn a_front_end_depending_on_the_studies_is_rejected() {
+        let err = check(&workspace_with(("bs-cli", "bs-study"))).unwrap_err();
+        assert!(
+            err.contains("bs-cli -> bs-study") && err.contains("only xtask drives it"),
+            "{err}"
+        );
     }
 
     #[test]

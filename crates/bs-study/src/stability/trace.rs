@@ -8,12 +8,12 @@
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
+use crate::study::Variant;
 use bs_dr::{DrParams, DynamicRelaxation, Progress};
 use bs_mesh::Vector3;
 use bs_scene::Prepared;
 use bs_scene::compose::compose;
 use bs_scene::scene::SolverKind;
-use bs_scene::study::Variant;
 
 /// What the command was asked.
 #[derive(Debug)]

@@ -6,10 +6,10 @@
 
 use std::collections::BTreeSet;
 
+use crate::study::Variant;
 use bs_mesh::Mesh;
 use bs_scene::Prepared;
 use bs_scene::scene::SolverKind;
-use bs_scene::study::Variant;
 
 use super::Cell;
 use super::measure::{measure, measured_cell};

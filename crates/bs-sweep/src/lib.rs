@@ -35,7 +35,7 @@ pub use plan::{plan, plan_text};
 pub use run::{RowOutcome, row_dir, run_row};
 pub use slurm::{SlurmOptions, SlurmScript, emit_slurm};
 
-use crate::SceneError;
+use bs_scene::SceneError;
 
 /// Why a sweep cannot be planned, run, collected or submitted.
 #[derive(Debug, thiserror::Error)]
@@ -176,7 +176,7 @@ pub(crate) fn csv_field(s: &str) -> String {
 
 /// Writes `text` to `path` atomically (temporary file renamed into place).
 pub(crate) fn write_text(path: &Path, text: &str) -> Result<(), SweepError> {
-    bs_mesh::io::write_atomic(path, |w| w.write_all(text.as_bytes()))
+    bs_atomic::write_atomic(path, |w| w.write_all(text.as_bytes()))
         .map_err(|e| SweepError::Write { path: path.to_path_buf(), message: e.to_string() })
 }
 

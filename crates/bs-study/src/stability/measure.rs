@@ -4,10 +4,10 @@
 
 use std::time::Instant;
 
+use crate::study::{Failure, Outcome, Variant};
+use crate::verdict::{Verdict, classify};
 use bs_dr::{LoadFailure, Progress, SolveError};
 use bs_scene::Prepared;
-use bs_scene::study::{Failure, Outcome, Variant};
-use bs_scene::verdict::{Verdict, classify};
 
 use super::Cell;
 
@@ -32,6 +32,7 @@ pub struct Metrics {
 }
 
 /// A run with the last progress its observer saw.
+#[derive(Debug)]
 pub struct Measured {
     /// The result.
     pub result: Result<Outcome, Failure>,

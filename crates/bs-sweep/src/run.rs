@@ -10,8 +10,8 @@ use std::time::Instant;
 use bs_dr::Progress;
 
 use super::{Manifest, SweepError, create_dir, write_text};
-use crate::output::{RunContext, report, write_outputs};
-use crate::{Prepared, Run, SceneError};
+use bs_scene::output::{RunContext, report, write_outputs};
+use bs_scene::{Prepared, Run, SceneError};
 
 /// What [`run_row`] did.
 #[derive(Debug, Clone, PartialEq)]
@@ -29,7 +29,7 @@ pub fn row_dir(dir: &Path, index: usize) -> PathBuf {
 
 /// True when `runs/I/report.json` is a complete report of a converged run.
 pub(crate) fn has_report(row: &Path) -> bool {
-    crate::output::RunReport::read(&row.join("report.json")).is_ok_and(|r| r.converged)
+    bs_scene::output::RunReport::read(&row.join("report.json")).is_ok_and(|r| r.converged)
 }
 
 /// Runs row `index` of the sweep in `dir` (see the module documentation). `threads` is
@@ -119,7 +119,7 @@ mod tests {
     use super::*;
 
     fn planned(name: &str, values: &str) -> PathBuf {
-        crate::sweep::planned_cube_sweep(
+        crate::planned_cube_sweep(
             &format!("run-{name}"),
             &format!("[[axis]]\nkey = \"boundary.3.displacement.z\"\nvalues = {values}\n"),
         )

@@ -15,7 +15,7 @@ use serde::Deserialize;
 use toml::{Table, Value};
 
 use super::{AxisValue, Manifest, Row, SweepError, create_dir, csv_field, write_text};
-use crate::Scene;
+use bs_scene::Scene;
 
 /// More rows than this is a mistake in the sweep file, not a plan.
 const MAX_ROWS: usize = 1_000_000;

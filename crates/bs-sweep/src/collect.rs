@@ -10,7 +10,7 @@ use bs_mesh::{Mesh, Point3, TetLocator, Vector3};
 
 use super::run::{has_report, row_dir};
 use super::{AxisValue, Manifest, SweepError, csv_field, write_text};
-use crate::Scene;
+use bs_scene::Scene;
 
 /// A named reference point (mesh length units).
 #[derive(Debug, Clone, PartialEq)]
@@ -168,7 +168,7 @@ pub fn collect(dir: &Path, points: &[NamedPoint]) -> Result<Summary, SweepError>
         };
         if has_report(&out) {
             r.status = Status::Ok;
-            if let Ok(report) = crate::output::RunReport::read(&out.join("report.json")) {
+            if let Ok(report) = bs_scene::output::RunReport::read(&out.join("report.json")) {
                 r.max_displacement = Some(report.max_displacement);
                 r.nodes_in_contact = Some(report.nodes_in_contact as u64);
                 r.solve_seconds = Some(report.solve_seconds);
@@ -266,11 +266,11 @@ fn at_points(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sweep::run_row;
+    use crate::run_row;
 
     #[test]
     fn collect_reports_ok_failed_and_missing_rows_with_point_values() {
-        let dir = crate::sweep::planned_cube_sweep(
+        let dir = crate::planned_cube_sweep(
             "collect",
             "[[axis]]\nkey = \"boundary.3.displacement.z\"\nvalues = [-0.1, -0.9, -0.05]\n",
         );

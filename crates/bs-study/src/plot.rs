@@ -22,7 +22,7 @@ pub fn err<E: std::fmt::Debug>(e: E) -> String {
 fn register_font() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
-        static FONT: &[u8] = include_bytes!("../../crates/bs-preview/assets/DejaVuSans.ttf");
+        static FONT: &[u8] = include_bytes!("../../bs-preview/assets/DejaVuSans.ttf");
         // Registration fails only for a malformed font file, which the assets test catches.
         let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
     });

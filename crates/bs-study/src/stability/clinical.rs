@@ -3,9 +3,9 @@
 //! common and up to 25 mm happen), and the same brain nearly incompressible (ν up to
 //! 0.4999, κ/μ up to 5000) with the time of each solve against ν = 0.49's in the same run.
 
+use crate::study::Variant;
 use bs_scene::Prepared;
 use bs_scene::scene::{ElementChoice, SolverKind};
-use bs_scene::study::Variant;
 
 use super::Cell;
 use super::measure::{measure, measured_cell};

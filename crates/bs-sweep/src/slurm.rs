@@ -1,13 +1,13 @@
 //! A Slurm array job for a sweep: one array task per row, each calling
 //! `brainshift sweep run DIR --index $SLURM_ARRAY_TASK_ID --threads $SLURM_CPUS_PER_TASK`,
-//! with its memory request from [`crate::memory::estimate`] (the figure `brainshift check`
+//! with its memory request from [`bs_scene::memory::estimate`] (the figure `brainshift check`
 //! prints) of the largest distinct scene in the sweep.
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 use super::{Manifest, SweepError, create_dir, write_text};
-use crate::{Prepared, Scene};
+use bs_scene::{Prepared, Scene};
 
 /// Options of the emitted script.
 #[derive(Debug, Clone)]
@@ -91,7 +91,7 @@ pub fn emit_slurm(dir: &Path, opts: &SlurmOptions) -> Result<SlurmScript, SweepE
         if seen.insert(key) {
             let p = Prepared::from_scene(&path, scene)
                 .map_err(|source| SweepError::Row { index: row.index, source })?;
-            estimate = estimate.max(crate::memory::estimate(&p));
+            estimate = estimate.max(bs_scene::memory::estimate(&p));
         }
     }
     let mem_mb = ((estimate * 1.5 / 1e6).ceil() as u64).max(256);
@@ -136,7 +136,7 @@ mod tests {
 
     #[test]
     fn the_script_asks_for_every_row_with_the_estimated_memory() {
-        let dir = crate::sweep::planned_cube_sweep(
+        let dir = crate::planned_cube_sweep(
             "slurm",
             "[[axis]]\nkey = \"region.material.youngs_modulus\"\n\
              range = [1000.0, 5000.0]\nsamples = 5\n",
@@ -152,7 +152,7 @@ mod tests {
         assert_eq!(text, script.text);
         assert_eq!(script.tasks, 5);
         let p = Prepared::load(&dir.join("scenes/0.toml")).unwrap();
-        let mem = ((crate::memory::estimate(&p) * 1.5 / 1e6).ceil() as u64).max(256);
+        let mem = ((bs_scene::memory::estimate(&p) * 1.5 / 1e6).ceil() as u64).max(256);
         assert_eq!(script.mem_mb, mem);
         for line in [
             "#SBATCH --array=0-4%2\n".to_string(),

@@ -1,4 +1,4 @@
-//! The knife-edge test (issue 23, point 1): the stability map's Newton–Krylov block cells
+//! The knife-edge test: the stability map's Newton–Krylov block cells
 //! (forcing, indentation depths, Poisson's ratio for T4 and T4ANP up to 0.4999) run three
 //! ways — as they are, with the material constants changed in the last digits, and with the
 //! mesh's node order permuted — must end with the same verdict after Newton iteration counts
@@ -16,12 +16,12 @@ use bs_mesh::io::Fields;
 use bs_mesh::rng::SplitMix64;
 use bs_scene::Prepared;
 use bs_scene::scene::SolverKind;
-use bs_scene::study::Variant;
-use bs_scene::verdict::{Verdict, classify};
+use bs_study::study::Variant;
+use bs_study::verdict::{Verdict, classify};
 
-use super::measure::{Measured, measure};
-use super::{Spec, as_built, newton_krylov_block_specs};
-use crate::util::root;
+use bs_study::stability::measure::{Measured, measure};
+use bs_study::stability::{Spec, as_built, newton_krylov_block_specs};
+use bs_study::util::root;
 
 /// Relative change of the material constants.
 const EPS: f64 = 1e-12;
@@ -109,7 +109,7 @@ fn dir(name: &str) -> PathBuf {
 /// mesh: the same element volumes in the same order, the same coordinates in every set.
 #[test]
 fn permuted_block_is_the_same_mesh() {
-    let m = super::block(4, 2.0, true);
+    let m = bs_study::stability::block(4, 2.0, true);
     let p = permute_nodes(m.clone());
     let moved = (0..m.nodes.len()).filter(|&i| m.nodes[i] != p.nodes[i]).count();
     assert!(moved > m.nodes.len() * 9 / 10, "{moved} of {}", m.nodes.len());

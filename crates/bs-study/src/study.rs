@@ -9,11 +9,11 @@ use bs_contact::PaperParams;
 use bs_dr::{Progress, SolveError};
 use nalgebra::Vector3;
 
-use crate::compose::{ComposeOptions, compose_with};
-use crate::prepare::Prepared;
-use crate::scene::{Algorithm, ElementChoice, SolverKind};
-use crate::solve::{SolveSettings, prepare_solver, solve_composed};
-use crate::verify::verify;
+use bs_scene::compose::{ComposeOptions, compose_with};
+use bs_scene::prepare::Prepared;
+use bs_scene::scene::{Algorithm, ElementChoice, SolverKind};
+use bs_scene::solve::{SolveSettings, prepare_solver, solve_composed};
+use bs_scene::verify::verify;
 
 /// The contact of a variant.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -61,7 +61,7 @@ pub enum Failure {
     /// The solver stopped with a typed error.
     Solve(SolveError),
     /// The solver converged but the result failed verification (contact, J, equilibrium).
-    Check(crate::verify::VerifyError),
+    Check(bs_scene::verify::VerifyError),
 }
 
 impl std::fmt::Display for Failure {
@@ -110,7 +110,7 @@ pub struct Outcome {
     /// Smallest element volume ratio J of the result (> 0: verified).
     pub min_volume_ratio: f64,
     /// Largest out-of-balance force at a free node relative to the largest reaction
-    /// (verified against [`crate::verify::equilibrium_bound`]).
+    /// (verified against [`bs_scene::verify::equilibrium_bound`]).
     pub equilibrium_residual: f64,
 }
 

@@ -28,9 +28,9 @@ use std::path::Path;
 use std::process::Command;
 use std::time::Instant;
 
+use crate::calculix::{Deck, Sliding, parse_dat};
 use bs_mesh::Vector3;
 use bs_scene::Prepared;
-use bs_scene::calculix::{Deck, Sliding, parse_dat};
 
 /// A reference case: a fixture folder, its scene and the slopes to run.
 #[derive(Debug, Clone, Copy)]

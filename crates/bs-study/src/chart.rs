@@ -1,6 +1,6 @@
 //! `cargo xtask chart`: speed against accuracy. Every configuration of a case (mesh density,
 //! element technology, DR tolerance, contact handler; DR against Newton without contact) is
-//! solved through the code path of `brainshift run` ([`bs_scene::study`]), timed, and compared
+//! solved through the code path of `brainshift run` ([`crate::study`]), timed, and compared
 //! with the finest converged solution of the case: the finest mesh, T4ANP, DR tolerance
 //! 1e-5 mm. Results on other meshes are compared at their own nodes, with the reference
 //! carried over by [`bs_mesh::TetLocator`]. CalculiX's stored solutions are placed on the
@@ -13,12 +13,12 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::study::{ContactChoice, Variant, difference};
 use bs_mesh::quality::mean_edge_length;
 use bs_mesh::{TetLocator, Vector3, transfer};
 use bs_scene::findings::{ChartPoint, Findings, TARGETS, from_csv, markdown, pareto_front, to_csv};
 use bs_scene::prepare::Prepared;
 use bs_scene::scene::{Algorithm, ElementChoice, SolverKind};
-use bs_scene::study::{ContactChoice, Variant, difference};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
@@ -38,8 +38,8 @@ const SERIES_COLORS: [RGBColor; 10] = [
     RGBColor(0, 100, 70),
     RGBColor(150, 150, 0),
 ];
+use crate::calculix::read_reference;
 use crate::util::{replace_block, root, write};
-use bs_scene::calculix::read_reference;
 
 /// Tolerance of the reference solution of each case (mm); Newton–Krylov, whose error
 /// estimate is the last correction of a superlinear iteration.
@@ -262,7 +262,7 @@ fn calculix_points(
         if r.meta["converged"] != serde_json::Value::Bool(true) {
             continue;
         }
-        let u = bs_scene::calculix::field(&level.p, &r, tag)?;
+        let u = crate::calculix::field(&level.p, &r, tag)?;
         let (mean, max) = difference(&u, &level.reference, None);
         points.push(ChartPoint {
             case: case.name.into(),

@@ -11,8 +11,8 @@ use std::path::Path;
 
 use bs_mesh::{ElementKind, Point3, TriSurface, Vector3};
 
-use crate::prepare::Prepared;
-use crate::scene::MaterialModel;
+use bs_scene::prepare::Prepared;
+use bs_scene::scene::MaterialModel;
 
 /// A CalculiX input deck built from a scene.
 #[derive(Debug)]
@@ -71,7 +71,7 @@ impl Deck {
         for (r, region) in p.scene.regions.iter().enumerate() {
             material_card(r, region, 1.0, false)?;
         }
-        let composed = crate::compose::compose(p).map_err(|e| e.to_string())?;
+        let composed = bs_scene::compose::compose(p).map_err(|e| e.to_string())?;
         // Stresses in N per length unit squared: Pa × (metres per unit)².
         let stress = p.scene.units.metres().powi(2);
         let mut brain = String::new();
@@ -248,7 +248,7 @@ fn skull_wedges(skull: &TriSurface, node_base: u64, elem_base: u64) -> Result<St
 /// * anything else (`ogden`) is refused, naming the region and the models that can be written.
 fn material_card(
     r: usize,
-    region: &crate::scene::Region,
+    region: &bs_scene::scene::Region,
     stress: f64,
     weighed: bool,
 ) -> Result<String, String> {
@@ -290,7 +290,7 @@ fn material_card(
 /// magnitude carries the buoyancy, `a (ρ − φ ρ_f)/ρ` with `φ` the element's submerged volume
 /// fraction (exact for elements wholly above or below the level; an element the level cuts
 /// gets its share spread as its own weight is, where brainshift integrates the cut exactly).
-fn gravity_cards(c: &mut String, p: &Prepared, g: &crate::scene::Gravity) -> Result<(), String> {
+fn gravity_cards(c: &mut String, p: &Prepared, g: &bs_scene::scene::Gravity) -> Result<(), String> {
     let unit = g.unit().ok_or("[gravity] direction is zero")?;
     let scale = g.acceleration * p.scene.units.metres().powi(3);
     let [nx, ny, nz] = unit;
@@ -492,7 +492,7 @@ mod tests {
     #[test]
     fn refuses_an_ogden_region() {
         let path = regions_fixture();
-        let mut scene = crate::Scene::load(&path).unwrap();
+        let mut scene = bs_scene::Scene::load(&path).unwrap();
         scene.regions[2].material.model = MaterialModel::Ogden;
         scene.regions[2].material.alpha = Some(-4.7);
         let p = Prepared::from_scene(&path, scene).unwrap();

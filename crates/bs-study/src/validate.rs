@@ -17,14 +17,14 @@
 use std::fmt::Write as _;
 use std::sync::Arc;
 
+use crate::calculix::{Reference, field, read_partial, read_reference};
+use crate::study::{ContactChoice, Outcome, Variant, difference};
 use crate::util::{escape_cell, replace_block, root};
 use bs_contact::shapes::{self, Rng};
 use bs_contact::{BruteForce, ClosestPoint, Handler, MasterSurface, PaperParams};
 use bs_mesh::{Point3, TriSurface, Vector3};
 use bs_scene::Prepared;
-use bs_scene::calculix::{Reference, field, read_partial, read_reference};
 use bs_scene::scene::{Algorithm, ElementChoice, SolverKind};
-use bs_scene::study::{ContactChoice, Outcome, Variant, difference};
 
 /// One line of the validation table.
 #[derive(Debug, Clone)]
@@ -827,18 +827,4 @@ pub fn main(args: &[String]) -> Result<(), String> {
         return Err(format!("{failed} validation case(s) outside tolerance"));
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The quick cases (closed forms, DR vs Newton, contact queries) all pass.
-    #[test]
-    fn quick_validation_cases_pass() {
-        let rows = run(Scope::Quick).unwrap();
-        assert!(rows.len() >= 6 + 1 + 18, "{} rows", rows.len());
-        let failed: Vec<_> = rows.iter().filter(|r| !r.pass()).collect();
-        assert!(failed.is_empty(), "{failed:#?}");
-    }
 }

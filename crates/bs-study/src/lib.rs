@@ -1,0 +1,30 @@
+//! brainshift's evidence, as a library `cargo xtask` drives and `cargo test` checks: every
+//! number the docs quote about accuracy, stability and speed against accuracy is made here.
+//!
+//! * [`study`]: one scene solved with variations (element, tolerance, handler, solver), an
+//!   [`study::Outcome`] per run; [`verdict`]: how such a run ended (converged, stopped by a
+//!   guard, failed silently);
+//! * [`calculix`]: a scene written as a CalculiX deck and the reference solution read back;
+//!   [`reference`]: runs `ccx` on the fixtures and stores the references;
+//! * [`validate`]: every reference case in one table (closed forms, DR against
+//!   Newton–Krylov, contact against brute force, DR + contact against CalculiX);
+//! * [`stability`]: the stability map (time step, Poisson's ratio, hourglass control, load
+//!   until inversion, contact at sharp corners), its knife-edge and trace tools;
+//! * [`chart`] (drawn with [`plot`]): speed against accuracy;
+//! * [`fit`]: the measurement-fit fixture and study; [`ghost`]: the warped image where the
+//!   brain moved away;
+//! * [`util`]: where the repository is, atomic page blocks between markers.
+//!
+//! Nothing here is part of the product: bs-scene and the front ends never depend on it.
+
+pub mod calculix;
+pub mod chart;
+pub mod fit;
+pub mod ghost;
+pub mod plot;
+pub mod reference;
+pub mod stability;
+pub mod study;
+pub mod util;
+pub mod validate;
+pub mod verdict;
