@@ -91,167 +91,24 @@ impl MasterSurface {
         node_rule: NodeNormalRule,
     ) -> Result<Self, ContactError> {
         let nv = surface.vertices.len();
-        if surface.triangles.is_empty() {
-            return Err(ContactError::Empty);
-        }
-        for (i, v) in surface.vertices.iter().enumerate() {
-            if !(v.x.is_finite() && v.y.is_finite() && v.z.is_finite()) {
-                return Err(ContactError::NonFinite { vertex: i });
-            }
-        }
-        let mut triangles = Vec::with_capacity(surface.triangles.len());
-        for (t, tri) in surface.triangles.iter().enumerate() {
-            for &v in tri {
-                if v >= nv {
-                    return Err(ContactError::VertexOutOfRange {
-                        triangle: t,
-                        vertex: v,
-                        vertex_count: nv,
-                    });
-                }
-            }
-            let v = &surface.vertices;
-            let (n, area) = triangle_normal(&v[tri[0]], &v[tri[1]], &v[tri[2]]);
-            let scale =
-                (v[tri[1]] - v[tri[0]]).norm_squared().max((v[tri[2]] - v[tri[0]]).norm_squared());
-            if tri[0] == tri[1]
-                || tri[1] == tri[2]
-                || tri[0] == tri[2]
-                || area <= 1e-14 * scale
-                || n == Vector3::zeros()
-            {
-                return Err(ContactError::DegenerateTriangle { triangle: t, vertices: *tri });
-            }
-            triangles.push([tri[0] as u32, tri[1] as u32, tri[2] as u32]);
-        }
-
-        // Directed half-edges → face; undirected edges with their faces.
-        let mut undirected: HashMap<(u32, u32), Vec<(u32, bool)>> =
-            HashMap::with_capacity(triangles.len() * 2);
-        for (t, tri) in triangles.iter().enumerate() {
-            for k in 0..3 {
-                let (a, b) = (tri[k], tri[(k + 1) % 3]);
-                let key = (a.min(b), a.max(b));
-                undirected.entry(key).or_default().push((t as u32, a < b));
-            }
-        }
-        let mut keys: Vec<(u32, u32)> = undirected.keys().copied().collect();
-        keys.sort_unstable();
-        let mut edges = Vec::with_capacity(keys.len());
-        let mut edge_faces = Vec::with_capacity(keys.len());
-        let mut edge_index: HashMap<(u32, u32), u32> = HashMap::with_capacity(keys.len());
-        for key in keys {
-            let faces = &undirected[&key];
-            match faces.len() {
-                1 => {
-                    return Err(ContactError::OpenEdge {
-                        a: key.0 as usize,
-                        b: key.1 as usize,
-                        triangle: faces[0].0 as usize,
-                    });
-                }
-                2 => {
-                    if faces[0].1 == faces[1].1 {
-                        return Err(ContactError::InconsistentOrientation {
-                            a: key.0 as usize,
-                            b: key.1 as usize,
-                            t1: faces[0].0 as usize,
-                            t2: faces[1].0 as usize,
-                        });
-                    }
-                }
-                n => {
-                    return Err(ContactError::NonManifoldEdge {
-                        a: key.0 as usize,
-                        b: key.1 as usize,
-                        count: n,
-                        triangles: faces.iter().map(|f| f.0 as usize).collect(),
-                    });
-                }
-            }
-            edge_index.insert(key, edges.len() as u32);
-            edges.push([key.0, key.1]);
-            edge_faces.push([faces[0].0, faces[1].0]);
-        }
-        let face_edges: Vec<[u32; 3]> = triangles
-            .iter()
-            .map(|tri| {
-                let mut fe = [0u32; 3];
-                for k in 0..3 {
-                    let (a, b) = (tri[k], tri[(k + 1) % 3]);
-                    fe[k] = edge_index[&(a.min(b), a.max(b))];
-                }
-                fe
-            })
-            .collect();
-
+        let triangles = checked_triangles(surface)?;
+        let (edges, edge_faces, face_edges) = edge_topology(&triangles)?;
         let verts = surface.vertices.clone();
         let p = |i: u32| &verts[i as usize];
 
         // Node → faces, node → edges (CSR).
-        let csr = |count: usize, items: &mut dyn Iterator<Item = (u32, u32)>| {
-            let pairs: Vec<(u32, u32)> = items.collect();
-            let mut start = vec![0u32; count + 1];
-            for &(n, _) in &pairs {
-                start[n as usize + 1] += 1;
-            }
-            for i in 0..count {
-                start[i + 1] += start[i];
-            }
-            let mut fill = start.clone();
-            let mut list = vec![0u32; pairs.len()];
-            for &(n, x) in &pairs {
-                list[fill[n as usize] as usize] = x;
-                fill[n as usize] += 1;
-            }
-            (start, list)
-        };
         let (node_faces_start, node_faces) = csr(
             nv,
-            &mut triangles
+            triangles
                 .iter()
                 .enumerate()
                 .flat_map(|(t, tri)| tri.iter().map(move |&v| (v, t as u32))),
         );
         let (node_edges_start, node_edges) = csr(
             nv,
-            &mut edges
-                .iter()
-                .enumerate()
-                .flat_map(|(e, ab)| ab.iter().map(move |&v| (v, e as u32))),
+            edges.iter().enumerate().flat_map(|(e, ab)| ab.iter().map(move |&v| (v, e as u32))),
         );
-
-        // Vertex manifoldness: the faces around each vertex form one fan.
-        let mut half_edge: HashMap<(u32, u32), u32> = HashMap::with_capacity(triangles.len() * 3);
-        for (t, tri) in triangles.iter().enumerate() {
-            for k in 0..3 {
-                half_edge.insert((tri[k], tri[(k + 1) % 3]), t as u32);
-            }
-        }
-        for v in 0..nv {
-            let faces = &node_faces[node_faces_start[v] as usize..node_faces_start[v + 1] as usize];
-            if faces.is_empty() {
-                continue;
-            }
-            // Walk around v: from face f with corner v, cross the edge (v, next) into the
-            // face that contains the half-edge (next, v).
-            let mut count = 0usize;
-            let mut f = faces[0];
-            loop {
-                let tri = triangles[f as usize];
-                let k = tri.iter().position(|&x| x as usize == v).unwrap_or(0);
-                let next = tri[(k + 1) % 3];
-                f = half_edge[&(next, v as u32)];
-                count += 1;
-                if f == faces[0] || count > faces.len() {
-                    break;
-                }
-            }
-            if count != faces.len() {
-                let fans = faces.len().div_ceil(count.max(1)).max(2);
-                return Err(ContactError::NonManifoldVertex { vertex: v, fans });
-            }
-        }
+        check_vertex_fans(&triangles, &node_faces_start, &node_faces)?;
 
         // Outward orientation: signed enclosed volume.
         let volume: f64 = triangles
@@ -268,36 +125,9 @@ impl MasterSurface {
             .iter()
             .map(|f| face_normals[f[0] as usize] + face_normals[f[1] as usize])
             .collect();
-        let mut node_normals = vec![Vector3::zeros(); nv];
-        let mut bisectors = Vec::with_capacity(triangles.len());
-        for (t, tri) in triangles.iter().enumerate() {
-            let mut b = [Vector3::zeros(); 3];
-            for k in 0..3 {
-                let (c, u, w) = (p(tri[k]), p(tri[(k + 1) % 3]), p(tri[(k + 2) % 3]));
-                let weight = match node_rule {
-                    NodeNormalRule::AngleWeighted => corner_angle(c, u, w),
-                    NodeNormalRule::PlainSum => 1.0,
-                };
-                node_normals[tri[k] as usize] += face_normals[t] * weight;
-                let bis = (u - c).normalize() + (w - c).normalize();
-                b[k] = bis.normalize();
-            }
-            bisectors.push(b);
-        }
-        let mut node_radius = vec![0.0f64; nv];
-        let mut max_edge = 0.0f64;
-        let mut max_edge_projection = Vector3::zeros();
-        for e in &edges {
-            let d = p(e[1]) - p(e[0]);
-            let len = d.norm();
-            max_edge = max_edge.max(len);
-            for k in 0..3 {
-                max_edge_projection[k] = f64::max(max_edge_projection[k], d[k].abs());
-            }
-            for &v in e {
-                node_radius[v as usize] = node_radius[v as usize].max(len);
-            }
-        }
+        let (node_normals, bisectors) =
+            corner_normals(&verts, &triangles, &face_normals, node_rule);
+        let extent = edge_extent(&verts, &edges);
         let (lo, hi) = bounds(verts.iter());
         let size = (hi - lo).norm();
 
@@ -311,13 +141,13 @@ impl MasterSurface {
             edge_normals,
             node_normals,
             bisectors,
-            node_radius,
+            node_radius: extent.node_radius,
             node_faces_start,
             node_faces,
             node_edges_start,
             node_edges,
-            max_edge,
-            max_edge_projection,
+            max_edge: extent.max_edge,
+            max_edge_projection: extent.max_edge_projection,
             size,
             node_rule,
         })
@@ -538,4 +368,228 @@ pub(crate) fn bounds<'a>(pts: impl Iterator<Item = &'a Point3<f64>>) -> (Point3<
         }
     }
     (lo, hi)
+}
+
+/// The surface's triangles as `u32` indices, refused when a vertex is not finite, an index
+/// points past the vertices or a triangle is degenerate.
+fn checked_triangles(surface: &TriSurface) -> Result<Vec<[u32; 3]>, ContactError> {
+    let nv = surface.vertices.len();
+    if surface.triangles.is_empty() {
+        return Err(ContactError::Empty);
+    }
+    for (i, v) in surface.vertices.iter().enumerate() {
+        if !(v.x.is_finite() && v.y.is_finite() && v.z.is_finite()) {
+            return Err(ContactError::NonFinite { vertex: i });
+        }
+    }
+    let mut triangles = Vec::with_capacity(surface.triangles.len());
+    for (t, tri) in surface.triangles.iter().enumerate() {
+        for &v in tri {
+            if v >= nv {
+                return Err(ContactError::VertexOutOfRange {
+                    triangle: t,
+                    vertex: v,
+                    vertex_count: nv,
+                });
+            }
+        }
+        let v = &surface.vertices;
+        let (n, area) = triangle_normal(&v[tri[0]], &v[tri[1]], &v[tri[2]]);
+        let scale =
+            (v[tri[1]] - v[tri[0]]).norm_squared().max((v[tri[2]] - v[tri[0]]).norm_squared());
+        if tri[0] == tri[1]
+            || tri[1] == tri[2]
+            || tri[0] == tri[2]
+            || area <= 1e-14 * scale
+            || n == Vector3::zeros()
+        {
+            return Err(ContactError::DegenerateTriangle { triangle: t, vertices: *tri });
+        }
+        triangles.push([tri[0] as u32, tri[1] as u32, tri[2] as u32]);
+    }
+    Ok(triangles)
+}
+
+/// Edges (sorted by their vertex pair), each edge's two faces and each face's three edges;
+/// an edge with one face, two faces of the same orientation or more than two faces is
+/// refused.
+#[allow(clippy::type_complexity)]
+fn edge_topology(
+    triangles: &[[u32; 3]],
+) -> Result<(Vec<[u32; 2]>, Vec<[u32; 2]>, Vec<[u32; 3]>), ContactError> {
+    // Undirected edges with their faces and the direction each face runs them.
+    let mut undirected: HashMap<(u32, u32), Vec<(u32, bool)>> =
+        HashMap::with_capacity(triangles.len() * 2);
+    for (t, tri) in triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            let key = (a.min(b), a.max(b));
+            undirected.entry(key).or_default().push((t as u32, a < b));
+        }
+    }
+    let mut keys: Vec<(u32, u32)> = undirected.keys().copied().collect();
+    keys.sort_unstable();
+    let mut edges = Vec::with_capacity(keys.len());
+    let mut edge_faces = Vec::with_capacity(keys.len());
+    let mut edge_index: HashMap<(u32, u32), u32> = HashMap::with_capacity(keys.len());
+    for key in keys {
+        let faces = &undirected[&key];
+        match faces.len() {
+            1 => {
+                return Err(ContactError::OpenEdge {
+                    a: key.0 as usize,
+                    b: key.1 as usize,
+                    triangle: faces[0].0 as usize,
+                });
+            }
+            2 => {
+                if faces[0].1 == faces[1].1 {
+                    return Err(ContactError::InconsistentOrientation {
+                        a: key.0 as usize,
+                        b: key.1 as usize,
+                        t1: faces[0].0 as usize,
+                        t2: faces[1].0 as usize,
+                    });
+                }
+            }
+            n => {
+                return Err(ContactError::NonManifoldEdge {
+                    a: key.0 as usize,
+                    b: key.1 as usize,
+                    count: n,
+                    triangles: faces.iter().map(|f| f.0 as usize).collect(),
+                });
+            }
+        }
+        edge_index.insert(key, edges.len() as u32);
+        edges.push([key.0, key.1]);
+        edge_faces.push([faces[0].0, faces[1].0]);
+    }
+    let face_edges: Vec<[u32; 3]> = triangles
+        .iter()
+        .map(|tri| {
+            let mut fe = [0u32; 3];
+            for k in 0..3 {
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                fe[k] = edge_index[&(a.min(b), a.max(b))];
+            }
+            fe
+        })
+        .collect();
+    Ok((edges, edge_faces, face_edges))
+}
+
+/// A compressed row list of `(row, item)` pairs over `count` rows: row starts and items, in
+/// the pairs' order within each row.
+fn csr(count: usize, items: impl Iterator<Item = (u32, u32)>) -> (Vec<u32>, Vec<u32>) {
+    let pairs: Vec<(u32, u32)> = items.collect();
+    let mut start = vec![0u32; count + 1];
+    for &(n, _) in &pairs {
+        start[n as usize + 1] += 1;
+    }
+    for i in 0..count {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    let mut list = vec![0u32; pairs.len()];
+    for &(n, x) in &pairs {
+        list[fill[n as usize] as usize] = x;
+        fill[n as usize] += 1;
+    }
+    (start, list)
+}
+
+/// Vertex manifoldness: the faces around each vertex form one fan.
+fn check_vertex_fans(
+    triangles: &[[u32; 3]],
+    node_faces_start: &[u32],
+    node_faces: &[u32],
+) -> Result<(), ContactError> {
+    let mut half_edge: HashMap<(u32, u32), u32> = HashMap::with_capacity(triangles.len() * 3);
+    for (t, tri) in triangles.iter().enumerate() {
+        for k in 0..3 {
+            half_edge.insert((tri[k], tri[(k + 1) % 3]), t as u32);
+        }
+    }
+    for v in 0..node_faces_start.len() - 1 {
+        let faces = &node_faces[node_faces_start[v] as usize..node_faces_start[v + 1] as usize];
+        if faces.is_empty() {
+            continue;
+        }
+        // Walk around v: from face f with corner v, cross the edge (v, next) into the face
+        // that contains the half-edge (next, v).
+        let mut count = 0usize;
+        let mut f = faces[0];
+        loop {
+            let tri = triangles[f as usize];
+            let k = tri.iter().position(|&x| x as usize == v).unwrap_or(0);
+            let next = tri[(k + 1) % 3];
+            f = half_edge[&(next, v as u32)];
+            count += 1;
+            if f == faces[0] || count > faces.len() {
+                break;
+            }
+        }
+        if count != faces.len() {
+            let fans = faces.len().div_ceil(count.max(1)).max(2);
+            return Err(ContactError::NonManifoldVertex { vertex: v, fans });
+        }
+    }
+    Ok(())
+}
+
+/// Node normals (face normals summed with the rule's corner weights) and each corner's unit
+/// angle bisector.
+#[allow(clippy::type_complexity)]
+fn corner_normals(
+    verts: &[Point3<f64>],
+    triangles: &[[u32; 3]],
+    face_normals: &[Vector3<f64>],
+    node_rule: NodeNormalRule,
+) -> (Vec<Vector3<f64>>, Vec<[Vector3<f64>; 3]>) {
+    let p = |i: u32| &verts[i as usize];
+    let mut node_normals = vec![Vector3::zeros(); verts.len()];
+    let mut bisectors = Vec::with_capacity(triangles.len());
+    for (t, tri) in triangles.iter().enumerate() {
+        let mut b = [Vector3::zeros(); 3];
+        for k in 0..3 {
+            let (c, u, w) = (p(tri[k]), p(tri[(k + 1) % 3]), p(tri[(k + 2) % 3]));
+            let weight = match node_rule {
+                NodeNormalRule::AngleWeighted => corner_angle(c, u, w),
+                NodeNormalRule::PlainSum => 1.0,
+            };
+            node_normals[tri[k] as usize] += face_normals[t] * weight;
+            let bis = (u - c).normalize() + (w - c).normalize();
+            b[k] = bis.normalize();
+        }
+        bisectors.push(b);
+    }
+    (node_normals, bisectors)
+}
+
+/// How far the surface's edges reach: per node its longest edge, the longest edge and the
+/// largest extent of an edge along each axis.
+struct EdgeExtent {
+    node_radius: Vec<f64>,
+    max_edge: f64,
+    max_edge_projection: Vector3<f64>,
+}
+
+fn edge_extent(verts: &[Point3<f64>], edges: &[[u32; 2]]) -> EdgeExtent {
+    let p = |i: u32| &verts[i as usize];
+    let mut node_radius = vec![0.0f64; verts.len()];
+    let mut max_edge = 0.0f64;
+    let mut max_edge_projection = Vector3::zeros();
+    for e in edges {
+        let d = p(e[1]) - p(e[0]);
+        let len = d.norm();
+        max_edge = max_edge.max(len);
+        for k in 0..3 {
+            max_edge_projection[k] = f64::max(max_edge_projection[k], d[k].abs());
+        }
+        for &v in e {
+            node_radius[v as usize] = node_radius[v as usize].max(len);
+        }
+    }
+    EdgeExtent { node_radius, max_edge, max_edge_projection }
 }

@@ -342,115 +342,72 @@ pub fn read_points(bytes: &[u8], file: &Path) -> Result<Vec<nalgebra::Point3<f64
 
 /// Parses a legacy VTK unstructured grid (ASCII or big-endian BINARY).
 pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
-    let (mut c, space, ds, line) = open(bytes, file)?;
+    let (c, space, ds, line) = open(bytes, file)?;
     if ds != "UNSTRUCTURED_GRID" {
         return Err(c.err_line(
             line,
             format!("dataset type {ds}; only UNSTRUCTURED_GRID holds a volume mesh (convert it with ParaView or meshio)"),
         ));
     }
-    let mut points: Option<(usize, Array)> = None;
-    let mut cells = Cells::default();
-    let mut ncells_decl: Option<(usize, usize)> = None;
-    let mut section = Section::None;
-    let (mut pdata, mut cdata) = (Vec::new(), Vec::new());
-    while let Some((kw, line)) = c.token() {
+    let mut g = Grid::new(c);
+    while let Some((kw, line)) = g.c.token() {
+        g.section_at(kw, line)?;
+    }
+    let (mesh, mut fields) = g.finish(file)?;
+    if let Some(space) = space {
+        fields.field_data.push(("SPACE".into(), space.into()));
+    }
+    Ok((mesh, fields))
+}
+
+/// An unstructured grid as its sections are read: one method per keyword.
+struct Grid<'a> {
+    c: Cursor<'a>,
+    points: Option<(usize, Array)>,
+    cells: Cells,
+    /// The declared cell count and the line declaring it.
+    ncells_decl: Option<(usize, usize)>,
+    section: Section,
+    pdata: Vec<Array>,
+    cdata: Vec<Array>,
+}
+
+impl<'a> Grid<'a> {
+    fn new(c: Cursor<'a>) -> Self {
+        Grid {
+            c,
+            points: None,
+            cells: Cells::default(),
+            ncells_decl: None,
+            section: Section::None,
+            pdata: Vec::new(),
+            cdata: Vec::new(),
+        }
+    }
+
+    /// Reads the section the keyword `kw` (on `line`) opens.
+    fn section_at(&mut self, kw: &'a str, line: usize) -> Result<(), ParseError> {
         let kw_up = kw.to_ascii_uppercase();
         match kw_up.as_str() {
-            "POINTS" => {
-                let (n, _) = c.count("the number of points")?;
-                let (ty, _) = c.expect_token("the point data type")?;
-                let nv =
-                    n.checked_mul(3).ok_or_else(|| c.err_line(line, "point count too large"))?;
-                let data = c.values(nv, ty, line, "POINTS")?;
-                points = Some((
-                    n,
-                    Array { name: "Points".into(), ncomp: 3, data, loc: Location::Line(line) },
-                ));
-                c.skip_metadata();
-            }
-            "CELLS" => {
-                let (a, _) = c.count("the number of cells")?;
-                let (size, _) = c.count("the cell list size")?;
-                cells.loc = Some(Location::Line(line));
-                if c.peek_token() == Some("OFFSETS") {
-                    c.token();
-                    let (ty, l) = c.expect_token("the offsets type")?;
-                    let off = ints(c.values(a, ty, l, "OFFSETS")?, &c, l, "OFFSETS")?;
-                    let (kw2, l2) = c.expect_token("CONNECTIVITY")?;
-                    if kw2 != "CONNECTIVITY" {
-                        return Err(c.err_line(l2, format!("expected CONNECTIVITY, found '{kw2}'")));
-                    }
-                    let (ty, l) = c.expect_token("the connectivity type")?;
-                    cells.connectivity =
-                        ints(c.values(size, ty, l, "CONNECTIVITY")?, &c, l, "CONNECTIVITY")?;
-                    if off.first().is_some_and(|&o| o != 0) {
-                        return Err(c.err_line(line, "OFFSETS must start with 0"));
-                    }
-                    cells.offsets = off.get(1..).unwrap_or(&[]).to_vec();
-                    ncells_decl = Some((a.saturating_sub(1), line));
-                } else {
-                    let list = ints(c.values(size, "int", line, "CELLS")?, &c, line, "CELLS")?;
-                    let (mut conn, mut offs) =
-                        (Vec::with_capacity(list.len()), Vec::with_capacity(a.min(list.len())));
-                    let mut p = 0usize;
-                    for i in 0..a {
-                        let k = *list.get(p).ok_or_else(|| {
-                            c.err_line(
-                                line,
-                                format!(
-                                    "CELLS lists {a} cells but its {size} numbers end in cell {i}"
-                                ),
-                            )
-                        })?;
-                        let end = usize::try_from(k).ok().and_then(|k| (p + 1).checked_add(k)).filter(|&e| e <= list.len()).ok_or_else(|| {
-                            c.err_line(line, format!("cell {i} declares {k} nodes, beyond the CELLS list of {size} numbers"))
-                        })?;
-                        conn.extend_from_slice(&list[p + 1..end]);
-                        offs.push(conn.len() as i64);
-                        p = end;
-                    }
-                    if p != list.len() {
-                        return Err(c.err_line(
-                            line,
-                            format!("CELLS size is {size} but the {a} cells use {p} numbers"),
-                        ));
-                    }
-                    cells.connectivity = conn;
-                    cells.offsets = offs;
-                    ncells_decl = Some((a, line));
-                }
-                c.skip_metadata();
-            }
+            "POINTS" => self.points_section(line),
+            "CELLS" => self.cells_section(line),
             "CELL_TYPES" => {
+                let c = &mut self.c;
                 let (n, _) = c.count("the number of cell types")?;
-                cells.types =
-                    ints(c.values(n, "int", line, "CELL_TYPES")?, &c, line, "CELL_TYPES")?;
+                self.cells.types =
+                    ints(c.values(n, "int", line, "CELL_TYPES")?, c, line, "CELL_TYPES")?;
                 c.skip_metadata();
+                Ok(())
             }
-            "POINT_DATA" => section = Section::Point(c.count("the number of points")?.0),
-            "CELL_DATA" => section = Section::Cell(c.count("the number of cells")?.0),
-            "FIELD" => {
-                c.expect_token("the field name")?;
-                let (narrays, _) = c.count("the number of arrays")?;
-                for _ in 0..narrays {
-                    let (name, l) = c.expect_token("an array name")?;
-                    let (ncomp, _) = c.count("the number of components")?;
-                    let (ntuples, _) = c.count("the number of tuples")?;
-                    let (ty, _) = c.expect_token("the array data type")?;
-                    let n = ncomp
-                        .checked_mul(ntuples)
-                        .ok_or_else(|| c.err_line(l, "array too large"))?;
-                    let data = c.values(n, ty, l, &format!("array '{name}'"))?;
-                    c.skip_metadata();
-                    let a = Array { name: decode_name(name), ncomp, data, loc: Location::Line(l) };
-                    match section {
-                        Section::Point(_) => pdata.push(a),
-                        Section::Cell(_) => cdata.push(a),
-                        Section::None => {} // dataset-level field data (e.g. TIME): not mesh data
-                    }
-                }
+            "POINT_DATA" => {
+                self.section = Section::Point(self.c.count("the number of points")?.0);
+                Ok(())
             }
+            "CELL_DATA" => {
+                self.section = Section::Cell(self.c.count("the number of cells")?.0);
+                Ok(())
+            }
+            "FIELD" => self.field_section(),
             "SCALARS"
             | "VECTORS"
             | "NORMALS"
@@ -458,114 +415,245 @@ pub fn read(bytes: &[u8], file: &Path) -> Result<(Mesh, Fields), ParseError> {
             | "TEXTURE_COORDINATES"
             | "COLOR_SCALARS"
             | "GLOBAL_IDS"
-            | "PEDIGREE_IDS" => {
-                let count = match section {
-                    Section::Point(n) | Section::Cell(n) => n,
-                    Section::None => {
-                        return Err(
-                            c.err_line(line, format!("{kw} before POINT_DATA or CELL_DATA"))
-                        );
-                    }
-                };
-                let (name, _) = c.expect_token("the array name")?;
-                let (ncomp, ty) = match kw_up.as_str() {
-                    "SCALARS" => {
-                        let (ty, _) = c.expect_token("the data type")?;
-                        let rest = c.rest_of_line();
-                        let nc = match rest.split_whitespace().next() {
-                            None => 1,
-                            Some(t) => t.parse().map_err(|_| {
-                                c.err_line(
-                                    line,
-                                    format!("expected the number of components, found '{t}'"),
-                                )
-                            })?,
-                        };
-                        if c.peek_token() == Some("LOOKUP_TABLE") {
-                            c.token();
-                            c.expect_token("the lookup table name")?;
-                        }
-                        (nc, ty)
-                    }
-                    "VECTORS" | "NORMALS" => (3, c.expect_token("the data type")?.0),
-                    "TENSORS" => (9, c.expect_token("the data type")?.0),
-                    "TEXTURE_COORDINATES" => {
-                        (c.count("the dimension")?.0, c.expect_token("the data type")?.0)
-                    }
-                    "COLOR_SCALARS" => (
-                        c.count("the number of values")?.0,
-                        if c.binary { "unsigned_char" } else { "float" },
-                    ),
-                    _ => (1, c.expect_token("the data type")?.0),
-                };
-                let n =
-                    ncomp.checked_mul(count).ok_or_else(|| c.err_line(line, "array too large"))?;
-                let mut data = c.values(n, ty, line, &format!("{kw} '{name}'"))?;
-                if kw_up == "COLOR_SCALARS" && c.binary {
-                    // Binary colour scalars are bytes standing for [0, 1].
-                    data = Data::F(match data {
-                        Data::I(v) => v.iter().map(|&x| x as f64 / 255.0).collect(),
-                        Data::F(v) => v,
-                    });
-                }
-                c.skip_metadata();
-                let a = Array { name: decode_name(name), ncomp, data, loc: Location::Line(line) };
-                match section {
-                    Section::Point(_) => pdata.push(a),
-                    _ => cdata.push(a),
-                }
-            }
+            | "PEDIGREE_IDS" => self.attribute(kw, &kw_up, line),
             "LOOKUP_TABLE" => {
+                let c = &mut self.c;
                 c.expect_token("the lookup table name")?;
                 let (n, _) = c.count("the lookup table size")?;
                 let n4 =
                     n.checked_mul(4).ok_or_else(|| c.err_line(line, "lookup table too large"))?;
                 let ty = if c.binary { "unsigned_char" } else { "float" };
                 c.values(n4, ty, line, "LOOKUP_TABLE")?;
+                Ok(())
             }
             "METADATA" => {
+                let c = &mut self.c;
                 c.rest_of_line();
                 while c.pos < c.b.len() && !c.rest_of_line().trim().is_empty() {}
+                Ok(())
             }
-            _ => {
-                return Err(c.err_line(
+            _ => Err(self.c.err_line(
+                line,
+                format!(
+                    "unexpected '{kw}': expected POINTS, CELLS, CELL_TYPES, POINT_DATA, \
+                     CELL_DATA or a data array keyword"
+                ),
+            )),
+        }
+    }
+
+    fn points_section(&mut self, line: usize) -> Result<(), ParseError> {
+        let c = &mut self.c;
+        let (n, _) = c.count("the number of points")?;
+        let (ty, _) = c.expect_token("the point data type")?;
+        let nv = n.checked_mul(3).ok_or_else(|| c.err_line(line, "point count too large"))?;
+        let data = c.values(nv, ty, line, "POINTS")?;
+        self.points =
+            Some((n, Array { name: "Points".into(), ncomp: 3, data, loc: Location::Line(line) }));
+        c.skip_metadata();
+        Ok(())
+    }
+
+    /// `CELLS`: the VTK 5 form (`OFFSETS` and `CONNECTIVITY` arrays) or the classic list of
+    /// counts each followed by its nodes.
+    fn cells_section(&mut self, line: usize) -> Result<(), ParseError> {
+        let (a, _) = self.c.count("the number of cells")?;
+        let (size, _) = self.c.count("the cell list size")?;
+        self.cells.loc = Some(Location::Line(line));
+        if self.c.peek_token() == Some("OFFSETS") {
+            self.c.token();
+            self.offsets_and_connectivity(a, size, line)?;
+            self.ncells_decl = Some((a.saturating_sub(1), line));
+        } else {
+            self.classic_cell_list(a, size, line)?;
+            self.ncells_decl = Some((a, line));
+        }
+        self.c.skip_metadata();
+        Ok(())
+    }
+
+    fn offsets_and_connectivity(
+        &mut self,
+        a: usize,
+        size: usize,
+        line: usize,
+    ) -> Result<(), ParseError> {
+        let c = &mut self.c;
+        let (ty, l) = c.expect_token("the offsets type")?;
+        let off = ints(c.values(a, ty, l, "OFFSETS")?, c, l, "OFFSETS")?;
+        let (kw2, l2) = c.expect_token("CONNECTIVITY")?;
+        if kw2 != "CONNECTIVITY" {
+            return Err(c.err_line(l2, format!("expected CONNECTIVITY, found '{kw2}'")));
+        }
+        let (ty, l) = c.expect_token("the connectivity type")?;
+        self.cells.connectivity =
+            ints(c.values(size, ty, l, "CONNECTIVITY")?, c, l, "CONNECTIVITY")?;
+        if off.first().is_some_and(|&o| o != 0) {
+            return Err(c.err_line(line, "OFFSETS must start with 0"));
+        }
+        self.cells.offsets = off.get(1..).unwrap_or(&[]).to_vec();
+        Ok(())
+    }
+
+    fn classic_cell_list(&mut self, a: usize, size: usize, line: usize) -> Result<(), ParseError> {
+        let c = &mut self.c;
+        let list = ints(c.values(size, "int", line, "CELLS")?, c, line, "CELLS")?;
+        let (mut conn, mut offs) =
+            (Vec::with_capacity(list.len()), Vec::with_capacity(a.min(list.len())));
+        let mut p = 0usize;
+        for i in 0..a {
+            let k = *list.get(p).ok_or_else(|| {
+                c.err_line(
                     line,
+                    format!("CELLS lists {a} cells but its {size} numbers end in cell {i}"),
+                )
+            })?;
+            let end = usize::try_from(k)
+                .ok()
+                .and_then(|k| (p + 1).checked_add(k))
+                .filter(|&e| e <= list.len())
+                .ok_or_else(|| {
+                    c.err_line(
+                        line,
+                        format!(
+                            "cell {i} declares {k} nodes, beyond the CELLS list of {size} numbers"
+                        ),
+                    )
+                })?;
+            conn.extend_from_slice(&list[p + 1..end]);
+            offs.push(conn.len() as i64);
+            p = end;
+        }
+        if p != list.len() {
+            return Err(c.err_line(
+                line,
+                format!("CELLS size is {size} but the {a} cells use {p} numbers"),
+            ));
+        }
+        self.cells.connectivity = conn;
+        self.cells.offsets = offs;
+        Ok(())
+    }
+
+    /// `FIELD name n` and its `n` arrays; dataset-level field data (e.g. TIME, before any
+    /// POINT_DATA or CELL_DATA) is read past, not kept as mesh data.
+    fn field_section(&mut self) -> Result<(), ParseError> {
+        let c = &mut self.c;
+        c.expect_token("the field name")?;
+        let (narrays, _) = c.count("the number of arrays")?;
+        for _ in 0..narrays {
+            let (name, l) = c.expect_token("an array name")?;
+            let (ncomp, _) = c.count("the number of components")?;
+            let (ntuples, _) = c.count("the number of tuples")?;
+            let (ty, _) = c.expect_token("the array data type")?;
+            let n = ncomp.checked_mul(ntuples).ok_or_else(|| c.err_line(l, "array too large"))?;
+            let data = c.values(n, ty, l, &format!("array '{name}'"))?;
+            c.skip_metadata();
+            let a = Array { name: decode_name(name), ncomp, data, loc: Location::Line(l) };
+            match self.section {
+                Section::Point(_) => self.pdata.push(a),
+                Section::Cell(_) => self.cdata.push(a),
+                Section::None => {}
+            }
+        }
+        Ok(())
+    }
+
+    /// A data attribute (`SCALARS`, `VECTORS`, …) of the current POINT_DATA or CELL_DATA.
+    fn attribute(&mut self, kw: &str, kw_up: &str, line: usize) -> Result<(), ParseError> {
+        let count = match self.section {
+            Section::Point(n) | Section::Cell(n) => n,
+            Section::None => {
+                return Err(self.c.err_line(line, format!("{kw} before POINT_DATA or CELL_DATA")));
+            }
+        };
+        let c = &mut self.c;
+        let (name, _) = c.expect_token("the array name")?;
+        let (ncomp, ty) = attribute_shape(c, kw_up, line)?;
+        let n = ncomp.checked_mul(count).ok_or_else(|| c.err_line(line, "array too large"))?;
+        let mut data = c.values(n, ty, line, &format!("{kw} '{name}'"))?;
+        if kw_up == "COLOR_SCALARS" && c.binary {
+            // Binary colour scalars are bytes standing for [0, 1].
+            data = Data::F(match data {
+                Data::I(v) => v.iter().map(|&x| x as f64 / 255.0).collect(),
+                Data::F(v) => v,
+            });
+        }
+        c.skip_metadata();
+        let a = Array { name: decode_name(name), ncomp, data, loc: Location::Line(line) };
+        match self.section {
+            Section::Point(_) => self.pdata.push(a),
+            _ => self.cdata.push(a),
+        }
+        Ok(())
+    }
+
+    /// The declared counts checked against what was read, and the mesh assembled.
+    fn finish(self, file: &Path) -> Result<(Mesh, Fields), ParseError> {
+        let c = &self.c;
+        let (npoints, pts) = self
+            .points
+            .ok_or_else(|| ParseError::new(file, Location::File, "no POINTS section"))?;
+        let (ncells, cline) = self.ncells_decl.unwrap_or((0, c.line));
+        if self.cells.types.len() != ncells {
+            return Err(c.err_line(
+                cline,
+                format!(
+                    "CELLS declares {ncells} cells but CELL_TYPES lists {}",
+                    self.cells.types.len()
+                ),
+            ));
+        }
+        for (arrays, what, n) in
+            [(&self.pdata, "POINT_DATA", npoints), (&self.cdata, "CELL_DATA", ncells)]
+        {
+            if let Some(a) = arrays.iter().find(|a| Some(a.data.len()) != a.ncomp.checked_mul(n)) {
+                return Err(ParseError::new(
+                    file,
+                    a.loc,
                     format!(
-                        "unexpected '{kw}': expected POINTS, CELLS, CELL_TYPES, POINT_DATA, \
-                         CELL_DATA or a data array keyword"
+                        "{what} array '{}' has {} values; {n} tuples of {} expected",
+                        a.name,
+                        a.data.len(),
+                        a.ncomp
                     ),
                 ));
             }
         }
+        assemble(file, npoints, &pts, &self.cells, self.pdata, self.cdata)
     }
-    let (npoints, pts) =
-        points.ok_or_else(|| ParseError::new(file, Location::File, "no POINTS section"))?;
-    let (ncells, cline) = ncells_decl.unwrap_or((0, c.line));
-    if cells.types.len() != ncells {
-        return Err(c.err_line(
-            cline,
-            format!("CELLS declares {ncells} cells but CELL_TYPES lists {}", cells.types.len()),
-        ));
-    }
-    for (arrays, what, n) in [(&pdata, "POINT_DATA", npoints), (&cdata, "CELL_DATA", ncells)] {
-        if let Some(a) = arrays.iter().find(|a| Some(a.data.len()) != a.ncomp.checked_mul(n)) {
-            return Err(ParseError::new(
-                file,
-                a.loc,
-                format!(
-                    "{what} array '{}' has {} values; {n} tuples of {} expected",
-                    a.name,
-                    a.data.len(),
-                    a.ncomp
-                ),
-            ));
+}
+
+/// The components and data type of an attribute keyword's array, read from its header.
+fn attribute_shape<'a>(
+    c: &mut Cursor<'a>,
+    kw_up: &str,
+    line: usize,
+) -> Result<(usize, &'a str), ParseError> {
+    Ok(match kw_up {
+        "SCALARS" => {
+            let (ty, _) = c.expect_token("the data type")?;
+            let rest = c.rest_of_line();
+            let nc = match rest.split_whitespace().next() {
+                None => 1,
+                Some(t) => t.parse().map_err(|_| {
+                    c.err_line(line, format!("expected the number of components, found '{t}'"))
+                })?,
+            };
+            if c.peek_token() == Some("LOOKUP_TABLE") {
+                c.token();
+                c.expect_token("the lookup table name")?;
+            }
+            (nc, ty)
         }
-    }
-    let (mesh, mut fields) = assemble(file, npoints, &pts, &cells, pdata, cdata)?;
-    if let Some(space) = space {
-        fields.field_data.push(("SPACE".into(), space.into()));
-    }
-    Ok((mesh, fields))
+        "VECTORS" | "NORMALS" => (3, c.expect_token("the data type")?.0),
+        "TENSORS" => (9, c.expect_token("the data type")?.0),
+        "TEXTURE_COORDINATES" => (c.count("the dimension")?.0, c.expect_token("the data type")?.0),
+        "COLOR_SCALARS" => {
+            (c.count("the number of values")?.0, if c.binary { "unsigned_char" } else { "float" })
+        }
+        _ => (1, c.expect_token("the data type")?.0),
+    })
 }
 
 fn ints(d: Data, c: &Cursor<'_>, line: usize, what: &str) -> Result<Vec<i64>, ParseError> {
