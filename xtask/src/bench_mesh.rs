@@ -10,6 +10,8 @@ use std::time::Instant;
 use bs_image::{Grid, Volume};
 use bs_meshgen::{MeshParams, mesh_labelmap};
 
+use crate::page::{Page, say};
+
 /// The synthetic stand-in: an ellipsoid (semi-axes 72, 90, 70 mm: 1.9 M voxels) on the
 /// MNI152 grid.
 fn ellipsoid() -> Result<Volume<u32>, String> {
@@ -32,7 +34,7 @@ fn ellipsoid() -> Result<Volume<u32>, String> {
     Ok(v)
 }
 
-fn bench(name: &str, labels: &Volume<u32>) -> Result<(), String> {
+fn bench(page: &mut Page, name: &str, labels: &Volume<u32>) -> Result<(), String> {
     let params = MeshParams::default();
     for threads in [1, 2] {
         let pool = rayon::ThreadPoolBuilder::new()
@@ -55,7 +57,8 @@ fn bench(name: &str, labels: &Volume<u32>) -> Result<(), String> {
         }
         times.sort_by(f64::total_cmp);
         let (s, r) = best.ok_or("no run")?;
-        println!(
+        say!(
+            page,
             "{name:<22} {threads} thread(s): best {s:.3} s, median {:.3} s  ({} nodes, {} tets, dihedral {:.1}..{:.1} deg, volume {:+.2}%)",
             times[times.len() / 2],
             r.nodes,
@@ -65,21 +68,23 @@ fn bench(name: &str, labels: &Volume<u32>) -> Result<(), String> {
             100.0 * r.volume_error()
         );
         let steps: Vec<String> = r.timings.iter().map(|(n, t)| format!("{n} {t:.3}")).collect();
-        println!("{:<22} steps of the best run: {}", "", steps.join(", "));
+        say!(page, "{:<22} steps of the best run: {}", "", steps.join(", "));
     }
     Ok(())
 }
 
 /// Runs the benchmark.
 pub fn main() -> Result<(), String> {
+    let mut page = Page::new("mesh");
     let mask = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/mni152/mask.nii.gz");
     if mask.is_file() {
         let t = Instant::now();
         let labels = bs_image::nifti::read_labels(&mask).map_err(|e| e.to_string())?;
-        println!("read {} in {:.3} s", mask.display(), t.elapsed().as_secs_f64());
-        bench("MNI152 mask, 4 mm", &labels)?;
+        say!(page, "read fixtures/mni152/mask.nii.gz in {:.3} s", t.elapsed().as_secs_f64());
+        bench(&mut page, "MNI152 mask, 4 mm", &labels)?;
     } else {
-        println!("{} not found: synthetic labelmap only", mask.display());
+        say!(page, "{} not found: synthetic labelmap only", mask.display());
     }
-    bench("ellipsoid 197x233x189", &ellipsoid()?)
+    bench(&mut page, "ellipsoid 197x233x189", &ellipsoid()?)?;
+    page.write("cargo xtask bench mesh")
 }

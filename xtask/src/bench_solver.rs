@@ -23,6 +23,8 @@ use bs_dr::{
 use bs_material::Material;
 use bs_mesh::{Mesh, Vector3};
 
+use crate::page::{Page, say};
+
 /// Unit cube of `n³` cells, interior nodes jittered by up to 0.2 h; hexes, or 6 tets per
 /// cell (Kuhn split, conforming).
 fn cube(n: usize, tets: bool) -> Mesh {
@@ -78,15 +80,19 @@ fn time_forces(model: &Model, u: &[Vector3<f64>], threads: usize) -> (Duration, 
     })
 }
 
-/// Runs the benchmark and prints the table.
+/// Runs the benchmark, prints the tables and writes them into docs/benchmarks.md (not for
+/// `BS_BENCH_N`).
 pub fn run() -> Result<(), String> {
-    println!("brainshift solver benchmark (Neo-Hookean E = 3000, nu = 0.49; best of 5)");
-    println!("NOTE: shared 2-core machine, numbers are noisy; compare the ratios.");
-    println!(
+    let mut page = Page::new("solver");
+    say!(page, "brainshift solver benchmark (Neo-Hookean E = 3000, nu = 0.49; best of 5)");
+    say!(page, "NOTE: shared 2-core machine, numbers are noisy; compare the ratios.");
+    say!(
+        page,
         "new = SIMD kernels ({} lanes), old = scalar kernels, both measured in this run.\n",
         if bs_dr::has_avx2_fma() { "AVX2/FMA" } else { "portable" }
     );
-    println!(
+    say!(
+        page,
         "{:<7} {:>7} {:>7} | {:>8} {:>8} {:>6} | {:>8} {:>8} {:>6} | {:>7}",
         "kernel",
         "elems",
@@ -99,7 +105,7 @@ pub fn run() -> Result<(), String> {
         "ratio",
         "new 2/1"
     );
-    println!("{:<23} | {:^24} | {:^24} |", "", "ns per element-step", "ns per element-step");
+    say!(page, "{:<23} | {:^24} | {:^24} |", "", "ns per element-step", "ns per element-step");
     let nt4: usize = std::env::var("BS_BENCH_N").ok().and_then(|s| s.parse().ok()).unwrap_or(21);
     let t4_mesh = cube(nt4, true); // 55 566 tets, 10 648 nodes
     let h8_mesh = cube(37, false); // 50 653 hexes
@@ -119,7 +125,8 @@ pub fn run() -> Result<(), String> {
         let (n1, o1) = time_forces(&m, &u, 1);
         let (n2, o2) = time_forces(&m, &u, 2);
         let (n1, o1, n2, o2) = (ns(n1), ns(o1), ns(n2), ns(o2));
-        println!(
+        say!(
+            page,
             "{:<7} {:>7} {:>7} | {:>8.1} {:>8.1} {:>5.2}x | {:>8.1} {:>8.1} {:>5.2}x | {:>6.2}x",
             name,
             mesh.elements.len(),
@@ -137,8 +144,14 @@ pub fn run() -> Result<(), String> {
     if std::env::var("BS_BENCH_N").is_ok() {
         return Ok(());
     }
+    dr_against_newton(&mut page, &t4_mesh)?;
+    page.write("cargo xtask bench solver")
+}
+
+/// DR against Newton on the 10 648-node T4 cube, top pushed down 20 %.
+fn dr_against_newton(page: &mut Page, t4_mesh: &Mesh) -> Result<(), String> {
     // DR vs Newton on the 10 648-node T4 cube.
-    let m = model(&t4_mesh, TetFormulation::T4);
+    let m = model(t4_mesh, TetFormulation::T4);
     let mut loads = Loads::new(t4_mesh.nodes.len());
     for (i, p) in t4_mesh.nodes.iter().enumerate() {
         if p.z.abs() < 1e-12 {
@@ -148,7 +161,8 @@ pub fn run() -> Result<(), String> {
             loads.prescribe_node(i, Vector3::new(0.0, 0.0, -0.2)).map_err(|e| e.to_string())?;
         }
     }
-    println!(
+    say!(
+        page,
         "\nDR vs Newton: T4 cube, {} nodes, {} tets, top pushed 20% (2 threads)",
         t4_mesh.nodes.len(),
         t4_mesh.elements.len()
@@ -175,7 +189,8 @@ pub fn run() -> Result<(), String> {
         .iter()
         .zip(&newton.displacements)
         .fold(0.0f64, |a, (x, y)| a.max((x - y).amax()));
-    println!(
+    say!(
+        page,
         "DR:     {:>7} steps  {:>8.2} s  ({:.1} us/step, rho {:.5}, err {:.2e})",
         dr.report.steps,
         dr.report.elapsed.as_secs_f64(),
@@ -183,13 +198,15 @@ pub fn run() -> Result<(), String> {
         dr.report.rho,
         dr.report.err
     );
-    println!(
+    say!(
+        page,
         "Newton: {:>7} iters  {:>8.2} s  ({} load steps, sparse Cholesky)",
         newton.report.iterations,
         newton.report.elapsed.as_secs_f64(),
         newton.report.load_steps
     );
-    println!(
+    say!(
+        page,
         "max nodal |u_DR - u_Newton| = {diff:.2e} (load 0.2, DR tolerance {:.1e}); wall-time ratio DR/Newton = {:.2}",
         dr.report.tolerance,
         dr.report.elapsed.as_secs_f64() / newton.report.elapsed.as_secs_f64()

@@ -14,6 +14,8 @@ use bs_mesh::Vector3;
 use bs_register::registration::{InverseMap, RunResult};
 use bs_scene::{BoundaryLoad, Prepared, Session, Solved};
 
+use crate::page::{Page, say};
+
 fn craniotomy(d: f64) -> Vec<(String, BoundaryLoad)> {
     vec![("CRANIOTOMY".into(), BoundaryLoad::Uniform(Vector3::new(0.0, 0.0, -d)))]
 }
@@ -46,6 +48,7 @@ fn median(v: &mut [f64]) -> f64 {
 /// Runs the benchmark (`--scene PATH`: another scene with a CRANIOTOMY node set).
 pub fn main(args: &[String]) -> Result<(), String> {
     let root = bs_study::util::root();
+    let mut page = Page::new("update");
     let scene = match args {
         [flag, path] if flag == "--scene" => std::path::PathBuf::from(path),
         [] => root.join("fixtures/mni152/scene.toml"),
@@ -57,9 +60,13 @@ pub fn main(args: &[String]) -> Result<(), String> {
     let mut warm = Session::new(Prepared::load(&scene).map_err(e)?).map_err(e)?;
     let prepare = t.elapsed().as_secs_f64();
     let mut cold = Session::new(Prepared::load(&scene).map_err(e)?).map_err(e)?;
-    println!("MNI152 demo, {} nodes; preparation {prepare:.3} s", warm.displacements().len());
-    println!("update: craniotomy at d mm; warm from the previous update, cold from the reference");
-    println!(
+    say!(page, "MNI152 demo, {} nodes; preparation {prepare:.3} s", warm.displacements().len());
+    say!(
+        page,
+        "update: craniotomy at d mm; warm from the previous update, cold from the reference"
+    );
+    say!(
+        page,
         "{:>5} {:>6} {:>6} {:>6} {:>8} | {:>6} {:>6} {:>6} {:>8} | {:>10} {:>12}",
         "d mm",
         "newton",
@@ -92,7 +99,8 @@ pub fn main(args: &[String]) -> Result<(), String> {
         });
         ratios.push(w.solve_seconds / c.solve_seconds);
         warm_times.push(w.solve_seconds);
-        println!(
+        say!(
+            page,
             "{} | {} | {:>10.3} {:>12.2e}{at}",
             row(&format!("{d}"), &w),
             row("", &c).trim_start(),
@@ -111,16 +119,19 @@ pub fn main(args: &[String]) -> Result<(), String> {
         states.push(w.solution.displacements);
     }
     let max_warm = warm_times.iter().copied().fold(0.0, f64::max);
-    println!(
+    say!(
+        page,
         "warm updates: median {:.3} s, max {max_warm:.3} s; warm/cold median {:.3} (every update verified)",
         median(&mut warm_times.clone()),
         median(&mut ratios)
     );
-    println!(
+    say!(
+        page,
         "warm updates, seconds: forces, preconditioner, contact | solver in all | verification"
     );
     for (k, p) in parts.iter().enumerate() {
-        println!(
+        say!(
+            page,
             "{:>5} {:>8.3} {:>8.3} {:>8.3} | {:>8.3} | {:>8.3}",
             k + 1,
             p[0],
@@ -152,7 +163,8 @@ pub fn main(args: &[String]) -> Result<(), String> {
         if gap.is_none() {
             let t = Instant::now();
             gap = Some(map.preop_gap(&v.grid));
-            println!(
+            say!(
+                page,
                 "pre-operative gap on the T1 grid (once per session, not in the times below): \
                  {:.3} s",
                 t.elapsed().as_secs_f64()
@@ -162,14 +174,14 @@ pub fn main(args: &[String]) -> Result<(), String> {
         let warped = map.warp_with_gap(v, &v.data, gap.as_ref().and_then(|g| g.as_deref()));
         let s = map_seconds + t.elapsed().as_secs_f64();
         warp_times.push(s);
-        println!("warped T1 after update {} ({} voxels): {s:.3} s", k + 1, warped.len());
+        say!(page, "warped T1 after update {} ({} voxels): {s:.3} s", k + 1, warped.len());
     }
-    println!("update -> warped T1 grid: median {:.3} s", median(&mut warp_times));
+    say!(page, "update -> warped T1 grid: median {:.3} s", median(&mut warp_times));
     match peak_kb() {
         Some(kb) => {
-            println!("peak memory (two sessions and the image): {:.0} MiB", kb as f64 / 1024.0)
+            say!(page, "peak memory (two sessions and the image): {:.0} MiB", kb as f64 / 1024.0)
         }
-        None => println!("peak memory: not available on this system"),
+        None => say!(page, "peak memory: not available on this system"),
     }
-    Ok(())
+    if args.is_empty() { page.write("cargo xtask bench update") } else { Ok(()) }
 }

@@ -5,7 +5,7 @@
 //! rasterised cavity and the gap solve; the exact map alone timed too) with the trilinear
 //! resampling, and the displacement field; and, for the ratio, the naive per-voxel `TetLocator::locate` on the deformed mesh
 //! over a 1-in-64 subsample of the voxels in the mesh's bounding box, scaled to all of them.
-//! Best of 3 runs each; the table goes to standard output.
+//! Best of 3 runs each; the table is printed and written into docs/benchmarks.md.
 
 use std::path::Path;
 use std::time::Instant;
@@ -13,6 +13,8 @@ use std::time::Instant;
 use bs_mesh::{Mesh, Point3};
 use bs_register::registration::{InverseMap, OutsideChoice, RunResult};
 use bs_scene::{Prepared, Run};
+
+use crate::page::{Page, say};
 
 fn best<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {
     let mut out = None;
@@ -87,35 +89,42 @@ pub fn main() -> Result<(), String> {
     let naive = t.elapsed().as_secs_f64() * 64.0 + locator_build;
 
     let threads = rayon::current_num_threads();
-    println!(
+    let mut page = Page::new("warp");
+    say!(
+        page,
         "bench warp: MNI152 T1 {:?} = {} voxels, {} inside the deformed brain, {threads} threads",
         dims,
         v.grid.len(),
         map.inside_count()
     );
-    println!("| step | seconds |");
-    println!("|---|---|");
-    println!("| read t1.nii.gz (baseline) | {read:.3} |");
-    println!("| exact inverse map alone (lattice location) | {exact_s:.3} |");
-    println!(
+    say!(page, "| step | seconds |");
+    say!(page, "|---|---|");
+    say!(page, "| read t1.nii.gz (baseline) | {read:.3} |");
+    say!(page, "| exact inverse map alone (lattice location) | {exact_s:.3} |");
+    say!(
+        page,
         "| inverse map with the extension to the skull ({} gap voxels, {} CG iterations) | {map_s:.3} |",
-        outside.gap_voxels, outside.iterations
+        outside.gap_voxels,
+        outside.iterations
     );
-    println!(
+    say!(
+        page,
         "| warp (trilinear resampling; the pre-operative gap located on the grid) | {warp_s:.3} |"
     );
-    println!("| field d(y) = X(y) - y (the same map) | {field_s:.3} |");
-    println!("| the pre-operative gap alone (reference mesh located on the grid) | {gap_s:.3} |");
-    println!("| warp given the gap (a live session's) | {warp_gap_s:.3} |");
-    println!("| field given the gap | {field_gap_s:.3} |");
-    println!(
+    say!(page, "| field d(y) = X(y) - y (the same map) | {field_s:.3} |");
+    say!(page, "| the pre-operative gap alone (reference mesh located on the grid) | {gap_s:.3} |");
+    say!(page, "| warp given the gap (a live session's) | {warp_gap_s:.3} |");
+    say!(page, "| field given the gap | {field_gap_s:.3} |");
+    say!(
+        page,
         "| map + warp | {:.3} ({:.2}x the image read) |",
         map_s + warp_s,
         (map_s + warp_s) / read
     );
-    println!(
+    say!(
+        page,
         "| naive TetLocator per voxel, bbox, 1/64 sample x 64 (+ build {locator_build:.3}) | {naive:.1} ({:.0}x map + warp; {sampled} sampled, {inside} inside) |",
         naive / (map_s + warp_s)
     );
-    Ok(())
+    page.write("cargo xtask bench warp")
 }

@@ -47,6 +47,7 @@ mod bench_update;
 mod bench_warp;
 mod deps;
 mod fuzz;
+mod page;
 
 use std::process::ExitCode;
 
