@@ -116,7 +116,7 @@ pub use nk::{
 pub use post::ElementMeasures;
 pub use solver::{
     Breakdown, ContinuationSummary, LoadFailure, Progress, Report, Solution, SolveError, Solver,
-    load_scale,
+    ToleranceUnit, load_scale,
 };
 
 #[cfg(test)]

@@ -378,10 +378,44 @@ pub(crate) fn param(
     if ok && value.is_finite() { Ok(()) } else { Err(InvalidParam { name, value, requirement }) }
 }
 
+/// What a solver's `tolerance` is measured in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ToleranceUnit {
+    /// A fraction of the problem's [`load_scale`] (the default: a tolerance that means the
+    /// same for any push).
+    #[default]
+    LoadScale,
+    /// The mesh's length unit (a scene file's `[solver] tolerance`).
+    Length,
+}
+
+impl ToleranceUnit {
+    /// `tolerance` in the mesh's length unit, for a problem of load scale `load_scale`.
+    pub fn length(self, tolerance: f64, load_scale: f64) -> f64 {
+        match self {
+            ToleranceUnit::LoadScale => tolerance * load_scale,
+            ToleranceUnit::Length => tolerance,
+        }
+    }
+}
+
 /// Length scale of a problem: the largest prescribed displacement component, or the
-/// bounding-box diagonal when nothing moves. Solver tolerances are relative to it; callers
-/// that think in absolute lengths divide by it.
+/// bounding-box diagonal when nothing moves. Tolerances in [`ToleranceUnit::LoadScale`] and
+/// the divergence limits are relative to it.
 pub fn load_scale(model: &Model, loads: &Loads) -> f64 {
     let m = loads.max_prescribed();
     if m > 0.0 { m } else { model.diagonal().max(f64::MIN_POSITIVE) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A load-scale tolerance is a fraction of the push; a length tolerance is itself.
+    #[test]
+    fn a_tolerance_is_a_length_in_either_unit() {
+        assert_eq!(ToleranceUnit::LoadScale.length(1e-6, 8.0), 8e-6);
+        assert_eq!(ToleranceUnit::Length.length(1e-3, 8.0), 1e-3);
+        assert_eq!(ToleranceUnit::default(), ToleranceUnit::LoadScale);
+    }
 }

@@ -4,7 +4,7 @@
 
 use bs_dr::{
     DrParams, DynamicRelaxation, Newton, NewtonKrylov, NewtonKrylovParams, NewtonParams, Progress,
-    Solution, SolveError, Solver, TwoLevelParams, WarmStart,
+    Solution, SolveError, Solver, ToleranceUnit, TwoLevelParams, WarmStart,
 };
 
 use crate::compose::Composed;
@@ -48,22 +48,13 @@ impl SolveSettings {
     }
 }
 
-/// The Newton–Krylov solver for settings `s` on composition `c`.
-fn newton_krylov(c: &Composed, s: &SolveSettings) -> NewtonKrylov {
-    newton_krylov_params(s, solver_scale(c))
-}
-
-/// The length bs-dr scales its relative tolerances by ([`bs_dr::load_scale`]: the largest
-/// prescribed displacement, or the mesh diagonal). The scene's tolerance is absolute; the
-/// composition's `load_scale` (how far measurements pull) is for the verification only.
-fn solver_scale(c: &Composed) -> f64 {
-    bs_dr::load_scale(&c.model, &c.loads)
-}
-
-fn newton_krylov_params(s: &SolveSettings, load_scale: f64) -> NewtonKrylov {
+/// The Newton–Krylov solver for settings `s`. The scene's tolerance is a length
+/// ([`ToleranceUnit::Length`]), for every solver.
+fn newton_krylov(s: &SolveSettings) -> NewtonKrylov {
     let defaults = NewtonKrylovParams::default();
     NewtonKrylov::new(NewtonKrylovParams {
-        tolerance: s.tolerance / load_scale,
+        tolerance: s.tolerance,
+        tolerance_unit: ToleranceUnit::Length,
         max_iterations: s.max_steps.unwrap_or(defaults.max_iterations),
         forcing_max: s.forcing_max.unwrap_or(defaults.forcing_max),
         forcing_active_set: s
@@ -86,7 +77,7 @@ pub fn prepare_solver(c: &mut Composed, s: &SolveSettings) -> Result<(), SolveEr
         && c.preparation.as_ref().is_none_or(|p| !p.fits(&c.loads))
     {
         c.preparation =
-            Some(newton_krylov(c, s).prepare(&c.model, &c.loads).map_err(SolveError::from)?);
+            Some(newton_krylov(s).prepare(&c.model, &c.loads).map_err(SolveError::from)?);
     }
     Ok(())
 }
@@ -113,8 +104,6 @@ pub fn solve_composed_from(
     observer: &mut dyn FnMut(&Progress),
 ) -> Result<(Solution, f64), SolveError> {
     let start = warm.map(|w| w.state);
-    let scale = solver_scale(c);
-    let relative = s.tolerance / scale;
     let mut max_penetration = 0.0f64;
     let mut observe = |pr: &Progress| {
         max_penetration = max_penetration.max(pr.contact.max_penetration);
@@ -138,7 +127,7 @@ pub fn solve_composed_from(
     let solution = match s.kind {
         SolverKind::NewtonKrylov => {
             let prep = c.preparation.as_ref().expect("prepared above");
-            newton_krylov_params(s, scale)
+            newton_krylov(s)
                 .solve_prepared_fit(&c.model, &c.loads, prep, warm, contact, data, &mut observe)
                 .map(Solution::into_common)
                 .map_err(SolveError::from)
@@ -148,7 +137,8 @@ pub fn solve_composed_from(
         SolverKind::Dr => {
             let defaults = DrParams::default();
             let dr = DynamicRelaxation::new(DrParams {
-                tolerance: relative,
+                tolerance: s.tolerance,
+                tolerance_unit: ToleranceUnit::Length,
                 step_fraction: s.step_fraction,
                 max_steps: s.max_steps.unwrap_or(defaults.max_steps),
                 ramp_steps: s.ramp_steps,
@@ -165,8 +155,11 @@ pub fn solve_composed_from(
             fix: "use kind = \"newton-krylov\" or \"dr\" for updates",
         }),
         SolverKind::Newton => {
-            let newton =
-                Newton::new(NewtonParams { tolerance: relative, ..NewtonParams::default() });
+            let newton = Newton::new(NewtonParams {
+                tolerance: s.tolerance,
+                tolerance_unit: ToleranceUnit::Length,
+                ..NewtonParams::default()
+            });
             Solver::solve(&newton, &c.model, &c.loads, contact, &mut observe)
         }
     }?;

@@ -337,7 +337,7 @@ impl DynamicRelaxation {
         let start_time = Instant::now();
         let mut setup = Setup::new(model, loads, p.step_fraction, start);
         let scale = load_scale(model, loads);
-        let tol = p.tolerance * scale;
+        let tol = p.tolerance_unit.length(p.tolerance, scale);
         let ramp_steps = p.ramp_steps.max(1);
         let omega = Self::omega_guess(model, &setup.masses);
         let mut rayleigh = RayleighEstimator::new(n, omega, p.rho, ramp_steps, p.snapshot_interval);

@@ -1,13 +1,17 @@
 //! The parameters of Dynamic Relaxation and their ranges.
 
-use crate::solver::{InvalidParam, param};
+use crate::solver::{InvalidParam, ToleranceUnit, param};
 
 /// Parameters of [`DynamicRelaxation`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DrParams {
-    /// Convergence tolerance on the error estimate, relative to the load scale (the largest
-    /// prescribed displacement component, or the bounding-box diagonal if none). Default 1e-6.
+    /// Convergence tolerance on the error estimate, in [`DrParams::tolerance_unit`]. Default
+    /// 1e-6.
     pub tolerance: f64,
+    /// What the tolerance is measured in: a fraction of the load scale (the largest
+    /// prescribed displacement component, or the bounding-box diagonal if none; the
+    /// default) or a length.
+    pub tolerance_unit: ToleranceUnit,
     /// Consecutive steps the error estimate must stay below the tolerance. Default 10.
     pub consecutive: usize,
     /// Step budget. Default 200 000.
@@ -28,6 +32,7 @@ impl Default for DrParams {
     fn default() -> Self {
         DrParams {
             tolerance: 1e-6,
+            tolerance_unit: ToleranceUnit::LoadScale,
             consecutive: 10,
             max_steps: 200_000,
             ramp_steps: 200,

@@ -140,7 +140,7 @@ impl Newton {
             });
         }
         let start = Instant::now();
-        let tol = p.tolerance * load_scale(model, loads);
+        let tol = p.tolerance_unit.length(p.tolerance, load_scale(model, loads));
         let mut sys = TangentSystem::new(model, loads)?;
         let zero = vec![Vector3::<f64>::zeros(); n];
         let mut s = State {

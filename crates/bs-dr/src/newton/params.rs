@@ -1,14 +1,16 @@
 //! The parameters of the Newton–Raphson reference and their ranges.
 
-use crate::solver::{InvalidParam, param};
+use crate::solver::{InvalidParam, ToleranceUnit, param};
 
 /// Parameters of [`Newton`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NewtonParams {
     /// Number of equal load steps. Default 10.
     pub load_steps: usize,
-    /// Convergence tolerance on `max|δu|` relative to the load scale. Default 1e-10.
+    /// Convergence tolerance on `max|δu|`, in [`NewtonParams::tolerance_unit`]. Default 1e-10.
     pub tolerance: f64,
+    /// What the tolerance is measured in (default: a fraction of the load scale).
+    pub tolerance_unit: ToleranceUnit,
     /// Iterations allowed per load step. Default 30.
     pub max_iterations: usize,
     /// Backtracking line search on the residual norm. Default true.
@@ -17,7 +19,13 @@ pub struct NewtonParams {
 
 impl Default for NewtonParams {
     fn default() -> Self {
-        NewtonParams { load_steps: 10, tolerance: 1e-10, max_iterations: 30, line_search: true }
+        NewtonParams {
+            load_steps: 10,
+            tolerance: 1e-10,
+            tolerance_unit: ToleranceUnit::LoadScale,
+            max_iterations: 30,
+            line_search: true,
+        }
     }
 }
 

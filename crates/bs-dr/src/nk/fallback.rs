@@ -31,7 +31,11 @@ pub(crate) fn dynamic_relaxation(
     (contact, data, observer): super::Seams<'_, '_, '_>,
 ) -> Result<Solution<DrInfo>, DrError> {
     let tolerance = FALLBACK_MARGIN * pb.params.tolerance;
-    let dr = DynamicRelaxation::new(DrParams { tolerance, ..DrParams::default() });
+    let dr = DynamicRelaxation::new(DrParams {
+        tolerance,
+        tolerance_unit: pb.params.tolerance_unit,
+        ..DrParams::default()
+    });
     let mut relay = |p: &Progress| {
         observer(&Progress {
             step: offset + p.step,

@@ -3,7 +3,7 @@
 //! search.
 
 use crate::linalg::twolevel::TwoLevelParams;
-use crate::solver::{InvalidParam, param};
+use crate::solver::{InvalidParam, ToleranceUnit, param};
 
 /// How the prescribed displacements are applied: in increments of the load fraction λ
 /// (0 = the start state's prescribed values, 1 = the final ones).
@@ -86,10 +86,13 @@ impl Default for LineSearchParams {
 /// Parameters of [`NewtonKrylov`](super::NewtonKrylov).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NewtonKrylovParams {
-    /// Convergence tolerance on the last Newton correction, relative to the load scale (the
-    /// largest prescribed displacement component, or the bounding-box diagonal if none).
-    /// Default 1e-6.
+    /// Convergence tolerance on the last Newton correction, in
+    /// [`NewtonKrylovParams::tolerance_unit`]. Default 1e-6.
     pub tolerance: f64,
+    /// What the tolerance is measured in: a fraction of the load scale (the largest
+    /// prescribed displacement component, or the bounding-box diagonal if none; the
+    /// default) or a length.
+    pub tolerance_unit: ToleranceUnit,
     /// Newton iterations allowed in all (over every load level). Default 300.
     pub max_iterations: usize,
     /// GMRES iterations allowed per Newton iteration. Default 200.
@@ -123,6 +126,7 @@ impl Default for NewtonKrylovParams {
     fn default() -> Self {
         NewtonKrylovParams {
             tolerance: 1e-6,
+            tolerance_unit: ToleranceUnit::LoadScale,
             max_iterations: 300,
             max_linear_iterations: 200,
             restart: 40,

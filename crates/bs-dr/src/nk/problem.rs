@@ -91,7 +91,7 @@ impl<'a> Problem<'a> {
             nodes,
             is_contact,
             params,
-            tol: params.tolerance * scale,
+            tol: params.tolerance_unit.length(params.tolerance, scale),
             limit: params.divergence_factor * scale,
             load: change(loads, start),
             start,

@@ -75,7 +75,8 @@ fn trace(p: &Prepared, a: &Args, scale: f64) -> Result<Traced, String> {
     let model = &c.model;
     let mut masses = vec![0.0; model.node_count()];
     let params = DrParams {
-        tolerance: p.scene.solver.tolerance / scale,
+        tolerance: p.scene.solver.tolerance,
+        tolerance_unit: bs_dr::ToleranceUnit::Length,
         ramp_steps: a.ramp.unwrap_or(p.scene.solver.ramp_steps),
         ..DrParams::default()
     };
