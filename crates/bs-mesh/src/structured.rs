@@ -97,6 +97,29 @@ pub fn jittered_box_mesh(n: usize, size: f64, tets: bool, jitter: f64, seed: u64
     mesh
 }
 
+/// [`box_mesh`] of Kuhn tetrahedra with the node sets `TOP` (z = size) and `BASE` (z = 0),
+/// and its elements split into two element sets: `ball` (centroid closer than `radius` to
+/// the box's centre) and `rest`. A box with a lesion inside, for tests of regions and
+/// resection.
+pub fn box_with_ball(n: usize, size: f64, radius: f64, ball: &str, rest: &str) -> Mesh {
+    let mut mesh = box_mesh(n, size, true);
+    let on = |z: f64, m: &Mesh| (0..m.nodes.len()).filter(|&v| m.nodes[v].z == z).collect();
+    let (top, base) = (on(size, &mesh), on(0.0, &mesh));
+    mesh.node_sets.insert("TOP".into(), top);
+    mesh.node_sets.insert("BASE".into(), base);
+    let centre = Point3::new(0.5 * size, 0.5 * size, 0.5 * size);
+    let (mut inside, mut outside) = (Vec::new(), Vec::new());
+    for (e, el) in mesh.elements.iter().enumerate() {
+        let nodes = el.nodes();
+        let c = nodes.iter().fold(nalgebra::Vector3::zeros(), |s, &v| s + mesh.nodes[v].coords)
+            / nodes.len() as f64;
+        if (c - centre.coords).norm() < radius { inside.push(e) } else { outside.push(e) }
+    }
+    mesh.element_sets.insert(ball.into(), inside);
+    mesh.element_sets.insert(rest.into(), outside);
+    mesh
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -135,5 +158,21 @@ mod tests {
             assert!(vols.iter().all(|&v| v > 0.0));
             assert!((vols.iter().sum::<f64>() - 8.0).abs() < 1e-12);
         }
+    }
+
+    /// The ball's elements are those whose centroid lies inside it, the rest the others: a
+    /// partition, and the ball's volume near 4/3 π r³ (within the cells cut by its sphere).
+    #[test]
+    fn box_with_ball_splits_its_elements_by_centroid() {
+        let m = box_with_ball(6, 40.0, 9.0, "BALL", "REST");
+        let (ball, rest) = (&m.element_sets["BALL"], &m.element_sets["REST"]);
+        assert_eq!(ball.len() + rest.len(), m.elements.len());
+        let volume: f64 = ball.iter().map(|&e| m.element_volume(e)).sum();
+        let exact = 4.0 / 3.0 * std::f64::consts::PI * 9f64.powi(3);
+        // Cells of 6.67 mm: the discrete ball is within a shell of one cell of the sphere.
+        let shell = 4.0 * std::f64::consts::PI * 81.0 * (40.0 / 6.0);
+        assert!((volume - exact).abs() < shell, "{volume} vs {exact}");
+        assert_eq!(m.node_sets["TOP"].len(), 49);
+        assert_eq!(m.node_sets["BASE"].len(), 49);
     }
 }

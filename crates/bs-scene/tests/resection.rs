@@ -9,7 +9,7 @@
 
 use std::path::{Path, PathBuf};
 
-use bs_mesh::{Mesh, Point3, Vector3};
+use bs_mesh::{Mesh, Vector3};
 use bs_scene::{Prepared, Run};
 
 fn tmp(name: &str) -> PathBuf {
@@ -19,21 +19,9 @@ fn tmp(name: &str) -> PathBuf {
     d
 }
 
+/// The 40 mm box with a 9 mm tumour at its centre (element sets TUMOUR and BRAIN).
 fn box_with_tumour() -> Mesh {
-    let mut mesh = bs_mesh::structured::box_mesh(6, 40.0, true);
-    let on = |z: f64, m: &Mesh| (0..m.nodes.len()).filter(|&n| m.nodes[n].z == z).collect();
-    let (top, base) = (on(40.0, &mesh), on(0.0, &mesh));
-    mesh.node_sets.insert("TOP".into(), top);
-    mesh.node_sets.insert("BASE".into(), base);
-    let centre = Point3::new(20.0, 20.0, 20.0);
-    let (mut tumour, mut brain) = (Vec::new(), Vec::new());
-    for (e, el) in mesh.elements.iter().enumerate() {
-        let c = el.nodes().iter().fold(Vector3::zeros(), |s, &n| s + mesh.nodes[n].coords) / 4.0;
-        if (c - centre.coords).norm() < 9.0 { tumour.push(e) } else { brain.push(e) }
-    }
-    mesh.element_sets.insert("TUMOUR".into(), tumour);
-    mesh.element_sets.insert("BRAIN".into(), brain);
-    mesh
+    bs_mesh::structured::box_with_ball(6, 40.0, 9.0, "TUMOUR", "BRAIN")
 }
 
 const MATERIAL: &str =
