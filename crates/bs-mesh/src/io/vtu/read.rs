@@ -305,40 +305,83 @@ fn read_xml(
     kind: &str,
     sections: &[&str],
 ) -> Result<XmlPiece, ParseError> {
-    let err = |pos: usize, msg: String| ParseError::new(file, Location::Byte(pos), msg);
-    // The appended section is not XML (raw binary may hold anything): parse only the markup
-    // before it and remember where its data starts.
-    let mut xml: Vec<u8>;
-    let mut appended: Option<(String, &[u8])> = None;
-    let xml_src: &[u8] = match find(bytes, b"<AppendedData") {
-        Some(p) => {
-            let q = p + bytes[p..]
-                .iter()
-                .position(|&b| b == b'>')
-                .ok_or_else(|| err(p, "unterminated <AppendedData> tag".into()))?;
-            let mut u = q + 1;
-            while u < bytes.len() && bytes[u].is_ascii_whitespace() {
-                u += 1;
-            }
-            if bytes.get(u) != Some(&b'_') {
-                return Err(err(u, "appended data must start with '_'".into()));
-            }
-            let data_end =
-                rfind(bytes, b"</AppendedData>").filter(|&e| e > u).unwrap_or(bytes.len());
-            xml = bytes[..=q].to_vec();
-            xml.extend_from_slice(b"</AppendedData></VTKFile>");
-            appended = Some((String::new(), &bytes[u + 1..data_end]));
-            &xml
+    let (xml_src, appended) = split_appended(bytes, file)?;
+    let markup = scan_markup(&xml_src, file, kind)?;
+    let appended = appended.map(|data| (markup.appended_encoding.clone(), data));
+    let (piece_attrs, piece_pos) = markup.piece;
+
+    // Appended base64: an array's encoded block ends where the next one starts.
+    let mut offsets: Vec<usize> = markup
+        .arrays
+        .iter()
+        .filter_map(|a| a.attrs.get("offset").and_then(|o| o.trim().parse().ok()))
+        .collect();
+    offsets.sort_unstable();
+    offsets.dedup();
+
+    let mut decoded = Vec::new();
+    let mut field_data = Vec::new();
+    for a in markup.arrays {
+        // Arrays outside the asked sections and the dataset's field data carry nothing the
+        // caller needs.
+        if a.section == "FieldData" {
+            field_data.extend(field_string(&a));
+        } else if sections.contains(&a.section.as_str()) {
+            let array = decode_array(&a, file, markup.layout, appended.as_ref(), &offsets)?;
+            decoded.push((a.section, array));
         }
-        None => bytes,
+    }
+    Ok(XmlPiece { attrs: piece_attrs, pos: piece_pos, arrays: decoded, field_data })
+}
+
+/// The markup to parse (borrowed, or copied and closed before the appended section) and
+/// the appended section's data, if any.
+type Split<'a> = (std::borrow::Cow<'a, [u8]>, Option<&'a [u8]>);
+
+/// The markup to parse and the appended data. The appended section is not XML (raw binary
+/// may hold anything): only the markup before it is parsed (closed again), and its data
+/// starts after the `_`.
+fn split_appended<'a>(bytes: &'a [u8], file: &Path) -> Result<Split<'a>, ParseError> {
+    let err = |pos: usize, msg: &str| ParseError::new(file, Location::Byte(pos), msg);
+    let Some(p) = find(bytes, b"<AppendedData") else {
+        return Ok((std::borrow::Cow::Borrowed(bytes), None));
     };
+    let q = p + bytes[p..]
+        .iter()
+        .position(|&b| b == b'>')
+        .ok_or_else(|| err(p, "unterminated <AppendedData> tag"))?;
+    let mut u = q + 1;
+    while u < bytes.len() && bytes[u].is_ascii_whitespace() {
+        u += 1;
+    }
+    if bytes.get(u) != Some(&b'_') {
+        return Err(err(u, "appended data must start with '_'"));
+    }
+    let data_end = rfind(bytes, b"</AppendedData>").filter(|&e| e > u).unwrap_or(bytes.len());
+    let mut xml = bytes[..=q].to_vec();
+    xml.extend_from_slice(b"</AppendedData></VTKFile>");
+    Ok((std::borrow::Cow::Owned(xml), Some(&bytes[u + 1..data_end])))
+}
+
+/// What the markup says: the data layout, the one piece (attributes, position), the data
+/// arrays in file order with their text, and the appended data's encoding.
+struct Markup {
+    layout: Layout,
+    piece: (HashMap<String, String>, usize),
+    arrays: Vec<RawArray>,
+    appended_encoding: String,
+}
+
+/// Reads the markup of a VTK XML file of type `kind`: one `<VTKFile>`, one `<Piece>`.
+fn scan_markup(xml_src: &[u8], file: &Path, kind: &str) -> Result<Markup, ParseError> {
+    let err = |pos: usize, msg: String| ParseError::new(file, Location::Byte(pos), msg);
     let mut reader = quick_xml::Reader::from_reader(xml_src);
     let mut stack: Vec<String> = Vec::new();
-    let mut layout = Layout { header64: false, zlib: false };
-    let mut piece: Option<(HashMap<String, String>, usize)> = None; // attributes, position
+    let mut layout = None;
+    let mut piece: Option<(HashMap<String, String>, usize)> = None;
     let mut arrays: Vec<RawArray> = Vec::new();
+    let mut appended_encoding = "raw".to_string();
     let mut open_array = false;
-    let mut saw_vtkfile = false;
     loop {
         let pos = reader.buffer_position() as usize;
         let ev = reader
@@ -371,42 +414,7 @@ fn read_xml(
         let name = String::from_utf8_lossy(s.name().as_ref()).into_owned();
         let at = attributes(&s, file, pos)?;
         match name.as_str() {
-            "VTKFile" => {
-                saw_vtkfile = true;
-                if let Some(t) = at.get("type").filter(|t| *t != kind) {
-                    let holds = match kind {
-                        "UnstructuredGrid" => "only UnstructuredGrid (.vtu) holds a volume mesh",
-                        _ => "only PolyData (.vtp) holds a point cloud or a surface here",
-                    };
-                    return Err(err(pos, format!("VTK file of type '{t}'; {holds}")));
-                }
-                if at.get("byte_order").is_some_and(|b| b == "BigEndian") {
-                    return Err(err(
-                        pos,
-                        "big-endian VTU is not supported; save it little-endian".into(),
-                    ));
-                }
-                layout.header64 = match at.get("header_type").map(String::as_str) {
-                    None | Some("UInt32") => false,
-                    Some("UInt64") => true,
-                    Some(o) => {
-                        return Err(err(pos, format!("header_type '{o}' is not UInt32 or UInt64")));
-                    }
-                };
-                match at.get("compressor").map(String::as_str) {
-                    None | Some("") => {}
-                    Some("vtkZLibDataCompressor") => layout.zlib = true,
-                    Some(o) => {
-                        return Err(err(
-                            pos,
-                            format!(
-                                "data compressed with {o} is not supported; save uncompressed or \
-                                 with zlib (ParaView: Data Mode Binary, Compressor ZLib or None)"
-                            ),
-                        ));
-                    }
-                }
-            }
+            "VTKFile" => layout = Some(vtkfile_layout(&at, kind, file, pos)?),
             "Piece" => {
                 if piece.is_some() {
                     return Err(err(pos, "VTK XML file with several pieces; merge them into one (ParaView: Merge Blocks) before use".into()));
@@ -414,9 +422,7 @@ fn read_xml(
                 piece = Some((at.clone(), pos));
             }
             "AppendedData" => {
-                if let Some(a) = appended.as_mut() {
-                    a.0 = at.get("encoding").cloned().unwrap_or_else(|| "raw".into());
-                }
+                appended_encoding = at.get("encoding").cloned().unwrap_or_else(|| "raw".into());
             }
             "DataArray" => {
                 let section = stack.last().cloned().unwrap_or_default();
@@ -429,116 +435,145 @@ fn read_xml(
             stack.push(name);
         }
     }
-    if !saw_vtkfile {
-        return Err(ParseError::new(
-            file,
-            Location::File,
-            "no <VTKFile> element: not a VTK XML file",
-        ));
-    }
-    let (piece_attrs, piece_pos) = piece.ok_or_else(|| {
+    let layout = layout.ok_or_else(|| {
+        ParseError::new(file, Location::File, "no <VTKFile> element: not a VTK XML file")
+    })?;
+    let piece = piece.ok_or_else(|| {
         ParseError::new(
             file,
             Location::File,
             format!("no <Piece> element: the dataset is empty or not of type {kind}"),
         )
     })?;
+    Ok(Markup { layout, piece, arrays, appended_encoding })
+}
 
-    // Appended base64: an array's encoded block ends where the next one starts.
-    let mut offsets: Vec<usize> = arrays
-        .iter()
-        .filter_map(|a| a.attrs.get("offset").and_then(|o| o.trim().parse().ok()))
-        .collect();
-    offsets.sort_unstable();
-    offsets.dedup();
-
-    let mut decoded = Vec::new();
-    let mut field_data = Vec::new();
-    for a in arrays {
-        // Arrays outside the asked sections and the dataset's field data carry nothing the
-        // caller needs.
-        if a.section != "FieldData" && !sections.contains(&a.section.as_str()) {
-            continue;
-        }
-        let ty = a.attrs.get("type").cloned().unwrap_or_default();
-        if a.section == "FieldData" {
-            // Dataset-level strings (e.g. SPACE) in ASCII; other field data is not used.
-            let ascii = a.attrs.get("format").is_none_or(|f| f == "ascii");
-            if ty == "String" && ascii {
-                let text = String::from_utf8_lossy(&a.text);
-                let bytes: Vec<u8> = text
-                    .split_ascii_whitespace()
-                    .map_while(|b| b.parse::<u8>().ok())
-                    .take_while(|&b| b != 0)
-                    .collect();
-                let name = a.attrs.get("Name").cloned().unwrap_or_default();
-                field_data.push((name, String::from_utf8_lossy(&bytes).into_owned()));
-            }
-            continue;
-        }
-        let fail = |m: String| {
-            err(a.pos, format!("DataArray '{}': {m}", a.attrs.get("Name").map_or("", |s| s)))
+/// The `<VTKFile>` element's checks (type, byte order) and the data layout it declares
+/// (header size, compression).
+fn vtkfile_layout(
+    at: &HashMap<String, String>,
+    kind: &str,
+    file: &Path,
+    pos: usize,
+) -> Result<Layout, ParseError> {
+    let err = |msg: String| ParseError::new(file, Location::Byte(pos), msg);
+    if let Some(t) = at.get("type").filter(|t| *t != kind) {
+        let holds = match kind {
+            "UnstructuredGrid" => "only UnstructuredGrid (.vtu) holds a volume mesh",
+            _ => "only PolyData (.vtp) holds a point cloud or a surface here",
         };
-        type_size(&ty).ok_or_else(|| {
-            fail(format!("type '{ty}' is not supported (use Float32/64, (U)Int8/16/32/64)"))
-        })?;
-        let format = a.attrs.get("format").map(String::as_str).unwrap_or("ascii");
-        let data = match format {
-            "ascii" => {
-                let text = std::str::from_utf8(&a.text)
-                    .map_err(|_| fail("ASCII data is not text".into()))?;
-                parse_ascii(ty.starts_with("Float"), text).map_err(fail)?
-            }
-            "binary" => {
-                let raw = b64_decode(&a.text).map_err(fail)?;
-                convert_le(&ty, &layout.block(&raw).map_err(fail)?).map_err(fail)?
-            }
-            "appended" => {
-                let (encoding, data) = appended.as_ref().ok_or_else(|| {
-                    fail("format=\"appended\" but the file has no <AppendedData>".into())
-                })?;
-                let off: usize = a
-                    .attrs
-                    .get("offset")
-                    .and_then(|o| o.trim().parse().ok())
-                    .ok_or_else(|| fail("appended array without a valid offset".into()))?;
-                if off > data.len() {
-                    return Err(fail(format!(
-                        "offset {off} is beyond the {} bytes of appended data",
-                        data.len()
-                    )));
-                }
-                let raw = if encoding == "base64" {
-                    let next = offsets
-                        .iter()
-                        .copied()
-                        .find(|&o| o > off)
-                        .unwrap_or(data.len())
-                        .min(data.len());
-                    b64_decode(&data[off..next]).map_err(fail)?
-                } else if encoding == "raw" {
-                    data[off..].to_vec()
-                } else {
-                    return Err(fail(format!(
-                        "appended encoding '{encoding}' is not raw or base64"
-                    )));
-                };
-                convert_le(&ty, &layout.block(&raw).map_err(fail)?).map_err(fail)?
-            }
-            o => return Err(fail(format!("format '{o}' is not ascii, binary or appended"))),
-        };
-        let ncomp: usize = match a.attrs.get("NumberOfComponents") {
-            None => 1,
-            Some(c) => c
-                .trim()
-                .parse()
-                .map_err(|_| fail(format!("NumberOfComponents '{c}' is not a count")))?,
-        };
-        let name = a.attrs.get("Name").cloned().unwrap_or_default();
-        let loc = Location::Byte(a.pos);
-        decoded.push((a.section, Array { name, ncomp, data, loc }));
+        return Err(err(format!("VTK file of type '{t}'; {holds}")));
     }
-    Ok(XmlPiece { attrs: piece_attrs, pos: piece_pos, arrays: decoded, field_data })
+    if at.get("byte_order").is_some_and(|b| b == "BigEndian") {
+        return Err(err("big-endian VTU is not supported; save it little-endian".into()));
+    }
+    let header64 = match at.get("header_type").map(String::as_str) {
+        None | Some("UInt32") => false,
+        Some("UInt64") => true,
+        Some(o) => return Err(err(format!("header_type '{o}' is not UInt32 or UInt64"))),
+    };
+    let zlib = match at.get("compressor").map(String::as_str) {
+        None | Some("") => false,
+        Some("vtkZLibDataCompressor") => true,
+        Some(o) => {
+            return Err(err(format!(
+                "data compressed with {o} is not supported; save uncompressed or \
+                 with zlib (ParaView: Data Mode Binary, Compressor ZLib or None)"
+            )));
+        }
+    };
+    Ok(Layout { header64, zlib })
+}
+
+/// A dataset-level String in ASCII (e.g. SPACE) as (name, value); other field data is not
+/// used.
+fn field_string(a: &RawArray) -> Option<(String, String)> {
+    let ascii = a.attrs.get("format").is_none_or(|f| f == "ascii");
+    if a.attrs.get("type").is_none_or(|t| t != "String") || !ascii {
+        return None;
+    }
+    let text = String::from_utf8_lossy(&a.text);
+    let bytes: Vec<u8> = text
+        .split_ascii_whitespace()
+        .map_while(|b| b.parse::<u8>().ok())
+        .take_while(|&b| b != 0)
+        .collect();
+    let name = a.attrs.get("Name").cloned().unwrap_or_default();
+    Some((name, String::from_utf8_lossy(&bytes).into_owned()))
+}
+
+/// One data array decoded from ASCII, inline base64 or the appended section (raw or base64,
+/// an encoded block ending at the next array's offset).
+fn decode_array(
+    a: &RawArray,
+    file: &Path,
+    layout: Layout,
+    appended: Option<&(String, &[u8])>,
+    offsets: &[usize],
+) -> Result<Array, ParseError> {
+    let fail = |m: String| {
+        ParseError::new(
+            file,
+            Location::Byte(a.pos),
+            format!("DataArray '{}': {m}", a.attrs.get("Name").map_or("", |s| s)),
+        )
+    };
+    let ty = a.attrs.get("type").cloned().unwrap_or_default();
+    type_size(&ty).ok_or_else(|| {
+        fail(format!("type '{ty}' is not supported (use Float32/64, (U)Int8/16/32/64)"))
+    })?;
+    let format = a.attrs.get("format").map(String::as_str).unwrap_or("ascii");
+    let data = match format {
+        "ascii" => {
+            let text =
+                std::str::from_utf8(&a.text).map_err(|_| fail("ASCII data is not text".into()))?;
+            parse_ascii(ty.starts_with("Float"), text).map_err(fail)?
+        }
+        "binary" => {
+            let raw = b64_decode(&a.text).map_err(fail)?;
+            convert_le(&ty, &layout.block(&raw).map_err(fail)?).map_err(fail)?
+        }
+        "appended" => {
+            let (encoding, data) = appended.ok_or_else(|| {
+                fail("format=\"appended\" but the file has no <AppendedData>".into())
+            })?;
+            let off: usize = a
+                .attrs
+                .get("offset")
+                .and_then(|o| o.trim().parse().ok())
+                .ok_or_else(|| fail("appended array without a valid offset".into()))?;
+            if off > data.len() {
+                return Err(fail(format!(
+                    "offset {off} is beyond the {} bytes of appended data",
+                    data.len()
+                )));
+            }
+            let raw = if encoding == "base64" {
+                let next = offsets
+                    .iter()
+                    .copied()
+                    .find(|&o| o > off)
+                    .unwrap_or(data.len())
+                    .min(data.len());
+                b64_decode(&data[off..next]).map_err(fail)?
+            } else if encoding == "raw" {
+                data[off..].to_vec()
+            } else {
+                return Err(fail(format!("appended encoding '{encoding}' is not raw or base64")));
+            };
+            convert_le(&ty, &layout.block(&raw).map_err(fail)?).map_err(fail)?
+        }
+        o => return Err(fail(format!("format '{o}' is not ascii, binary or appended"))),
+    };
+    let ncomp: usize = match a.attrs.get("NumberOfComponents") {
+        None => 1,
+        Some(c) => c
+            .trim()
+            .parse()
+            .map_err(|_| fail(format!("NumberOfComponents '{c}' is not a count")))?,
+    };
+    let name = a.attrs.get("Name").cloned().unwrap_or_default();
+    Ok(Array { name, ncomp, data, loc: Location::Byte(a.pos) })
 }
 
 fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
