@@ -105,7 +105,7 @@ pub use dr::{DrError, DrInfo, DrParams, DynamicRelaxation};
 pub use element::{Solid, TetFormulation};
 #[doc(hidden)]
 pub use kernels::simd::has_avx2_fma;
-pub use linalg::twolevel::TwoLevelParams;
+pub use linalg::multilevel::MultilevelParams;
 pub use loads::{LoadError, Loads, ramp};
 pub use model::{Model, ModelError, ModelOptions};
 pub use newton::{Newton, NewtonError, NewtonInfo, NewtonParams};

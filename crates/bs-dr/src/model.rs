@@ -9,7 +9,9 @@ use rayon::prelude::*;
 
 use crate::assembly::elements::{ElementList, Elements};
 use crate::assembly::stiffness::linear_stiffness;
-use crate::assembly::{Inversion, ReferenceWorkspace, StepBound, VolumetricScratch, Workspace};
+use crate::assembly::{
+    Inversion, ReferenceWorkspace, StepBound, StiffnessScratch, VolumetricScratch, Workspace,
+};
 use crate::element::bound::BoundModuli;
 use crate::element::{Hex, Solid, Tet, TetFormulation};
 use crate::linalg::nodal::NodalMatrix;
@@ -341,11 +343,17 @@ impl Model {
         linear_stiffness(&self.elements)
     }
 
-    /// `K₀` on the configuration with the nodes at `x` (see
-    /// [`crate::assembly::stiffness::linear_stiffness_at`]); `None` with hexahedra or an
-    /// element inverted at `x`.
-    pub(crate) fn linear_stiffness_at(&self, x: &[Point3<f64>]) -> Option<NodalMatrix> {
-        crate::assembly::stiffness::linear_stiffness_at(&self.elements, x)
+    /// The stiffness of [`linear_stiffness`](Self::linear_stiffness) on the configuration
+    /// `x` written into `k` (a matrix it built: see
+    /// [`crate::assembly::stiffness_at`]); `false` when an element is inverted at `x`.
+    pub(crate) fn stiffness_at_into(
+        &self,
+        x: &[Point3<f64>],
+        k: &mut NodalMatrix,
+        scratch: &mut StiffnessScratch,
+    ) -> bool {
+        let hourglass = self.options.hourglass;
+        crate::assembly::stiffness_at::stiffness_at_into(&self.elements, hourglass, x, k, scratch)
     }
 
     /// The T4ANP nodal volumetric term of `K₀` on the configuration `x`, written into `c`,

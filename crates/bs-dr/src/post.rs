@@ -37,6 +37,24 @@ impl Model {
             .reduce(|| 1.0, f64::min)
     }
 
+    /// How far the elements deformed between `from` and `to`: the volume-weighted root mean
+    /// square over the elements of `‖F(to) − F(from)‖` (Frobenius; a rigid translation is
+    /// zero, a rotation by θ about `2 sin(θ/2) √2`). Deterministic for any thread count.
+    pub fn strain_change(&self, from: &[Vector3<f64>], to: &[Vector3<f64>]) -> f64 {
+        let views: Vec<_> = self.elements.iter().map(|(_, v)| v).collect();
+        let sums: Vec<(f64, f64)> = views
+            .par_chunks(1024)
+            .map(|chunk| {
+                chunk.iter().fold((0.0, 0.0), |(s, v), e| {
+                    let d = e.deformation_gradient(to) - e.deformation_gradient(from);
+                    (s + e.vol * d.norm_squared(), v + e.vol)
+                })
+            })
+            .collect();
+        let (s, v) = sums.iter().fold((0.0, 0.0), |(a, b), (s, v)| (a + s, b + v));
+        if v > 0.0 { (s / v).sqrt() } else { 0.0 }
+    }
+
     /// The largest ratio `κ/μ` of bulk to shear modulus of the solids (0 without solids).
     pub fn max_bulk_to_shear(&self) -> f64 {
         let ratio = |s: &crate::Solid| {

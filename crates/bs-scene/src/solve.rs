@@ -3,8 +3,8 @@
 //! solve runs with a progress observer.
 
 use bs_dr::{
-    DrParams, DynamicRelaxation, Newton, NewtonKrylov, NewtonKrylovParams, NewtonParams, Progress,
-    Solution, SolveError, Solver, ToleranceUnit, TwoLevelParams, WarmStart,
+    DrParams, DynamicRelaxation, MultilevelParams, Newton, NewtonKrylov, NewtonKrylovParams,
+    NewtonParams, Progress, Solution, SolveError, Solver, ToleranceUnit, WarmStart,
 };
 
 use crate::compose::Composed;
@@ -27,7 +27,7 @@ pub struct SolveSettings {
     /// Newton–Krylov's largest linear-solve relative residual (its default when `None`).
     pub forcing_max: Option<f64>,
     /// Newton–Krylov keeps `K₀` to rebuild the preconditioner's coarse matrix for the contact
-    /// set (`bs_dr::TwoLevelParams::contact_coarse`). On by default: the MNI152 demo's cold
+    /// set (`bs_dr::MultilevelParams::contact_coarse`). On by default: the MNI152 demo's cold
     /// solve takes 13 Newton / 51 GMRES iterations with it, 14 / 78 without, for about
     /// 28 MB more memory (docs/benchmarks.md).
     pub contact_coarse: bool,
@@ -61,7 +61,7 @@ fn newton_krylov(s: &SolveSettings) -> NewtonKrylov {
             .forcing_max
             .map_or(defaults.forcing_active_set, |f| defaults.forcing_active_set.max(f)),
         forcing_min: s.forcing_max.map_or(defaults.forcing_min, |f| defaults.forcing_min.min(f)),
-        preconditioner: TwoLevelParams {
+        preconditioner: MultilevelParams {
             contact_coarse: s.contact_coarse,
             ..defaults.preconditioner
         },

@@ -112,29 +112,6 @@ impl Elements {
         4 * self.tets.len() + 8 * self.hexes.len()
     }
 
-    /// These elements with the tetrahedra `tets` (same nodes and order, other gradients and
-    /// volumes) for the stiffness assembly only: without the kernels' blocks (empty), so
-    /// not for force evaluations.
-    pub(crate) fn for_assembly(&self, tets: Vec<Tet>) -> Elements {
-        debug_assert_eq!(tets.len(), self.tets.len());
-        Elements {
-            solids: self.solids.clone(),
-            tet: self.tet,
-            tets,
-            tet_elem: self.tet_elem.clone(),
-            hexes: self.hexes.clone(),
-            hex_elem: self.hex_elem.clone(),
-            element_ids: Vec::new(),
-            slots: self.slots.clone(),
-            anp_inv_vol: self.anp_inv_vol.clone(),
-            anp_slots: self.anp_slots.clone(),
-            anp_ptr: self.anp_ptr.clone(),
-            tet_blocks: Vec::new(),
-            hex_blocks: Vec::new(),
-            runs: None,
-        }
-    }
-
     /// Number of T4ANP averaging groups (at least the node count).
     pub(crate) fn anp_groups(&self) -> usize {
         self.anp_inv_vol.len()
@@ -174,17 +151,6 @@ impl Elements {
             .zip(self.hex_elem.par_iter())
             .map(|(h, &e)| (e as usize, h.view()));
         tets.chain(hexes)
-    }
-
-    /// The element of slot `s` and the local node it stands for.
-    #[inline]
-    pub(crate) fn slot(&self, s: usize) -> (ElementView<'_>, usize) {
-        let nt4 = 4 * self.tets.len();
-        if s < nt4 {
-            (self.tets[s / 4].view(), s % 4)
-        } else {
-            (self.hexes[(s - nt4) / 8].view(), (s - nt4) % 8)
-        }
     }
 
     /// Element index (mesh order) of tet `i`.

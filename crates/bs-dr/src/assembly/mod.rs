@@ -10,6 +10,8 @@
 //!   caller-owned [`workspace`]s; [`inversion`]: which element inverted;
 //! * [`scalar`]: the same forces through the scalar reference kernels;
 //! * [`stiffness`]: `K₀`, the small-strain stiffness the preconditioner is built from;
+//!   [`stiffness_at`]: the same moved in place to the current configuration (the
+//!   preconditioner following the state);
 //! * [`volumetric`]: the T4ANP nodal volumetric term of `K₀` moved to another configuration
 //!   in place (the mixed form's multiplier term);
 //! * [`tangent`]: the consistent element tangent of the Newton reference.
@@ -27,6 +29,7 @@ pub(crate) mod scalar;
 pub(crate) mod slots;
 pub(crate) mod step_bound;
 pub(crate) mod stiffness;
+pub(crate) mod stiffness_at;
 pub(crate) mod tangent;
 pub(crate) mod volumetric;
 pub(crate) mod workspace;
@@ -34,5 +37,6 @@ pub(crate) mod workspace;
 pub use inversion::Inversion;
 pub use scalar::ReferenceWorkspace;
 pub use step_bound::StepBound;
+pub use stiffness_at::StiffnessScratch;
 pub use volumetric::VolumetricScratch;
 pub use workspace::Workspace;

@@ -13,11 +13,11 @@
 //! two-ring. `K₀` is returned as a [`NodalMatrix`] (the assembled element part plus the
 //! nodal term).
 //!
-//! [`linear_stiffness_at`] is the same small-strain stiffness on a deformed configuration
-//! (the tetrahedra's gradients and volumes at `X + u`, the reference moduli): the
-//! preconditioner refreshed for large deformations, where `K₀` drifts from the tangent.
+//! [`super::stiffness_at`] moves the same small-strain stiffness to a deformed configuration
+//! in place (the elements' gradients and volumes at `X + u`, the reference moduli): the
+//! preconditioner following the state, where `K₀` drifts from the tangent.
 
-use bs_mesh::{Point3, Vector3};
+use bs_mesh::Vector3;
 use nalgebra::Matrix3;
 use rayon::prelude::*;
 
@@ -25,7 +25,7 @@ use crate::linalg::nodal::NodalMatrix;
 use crate::linalg::sparse::{BlockCsr, RankOneSum, split_rows};
 
 use super::elements::Elements;
-use crate::element::Tet;
+use crate::element::{Hex, Tet};
 
 /// `K_ab = V (λ gₐ⊗g_b + μ g_b⊗gₐ + μ (gₐ·g_b) I)`: the isotropic small-strain stiffness block
 /// coupling nodes `a` and `b` of an element with (mean) gradients `ga`, `gb`.
@@ -40,17 +40,36 @@ fn block(ga: &[f64; 3], gb: &[f64; 3], lambda: f64, mu: f64, vol: f64) -> Matrix
 /// Assembles `K₀` of `elements` (all nodes, no boundary conditions): the element stiffness
 /// (deviatoric only for T4ANP tetrahedra) and, for T4ANP, the nodal volumetric term.
 pub(crate) fn linear_stiffness(elements: &Elements) -> NodalMatrix {
-    let anp = elements.anp();
     let mut k = BlockCsr::from_pattern(&adjacency(elements));
-    // Row-parallel assembly through the node → element-slot map (fixed order per row).
-    let BlockCsr { ptr, col, val } = &mut k;
+    assemble_rows(elements, &elements.tets, &elements.hexes, &mut k);
+    let (nodal, ratio) = match elements.anp().then(|| nodal_volumetric(elements)) {
+        Some((nodal, ratio)) => (Some(nodal), ratio),
+        None => (None, Vec::new()),
+    };
+    NodalMatrix { assembled: k, nodal, ratio }
+}
+
+/// The element part of the stiffness of `tets` and `hexes` (the elements of `elements`, or
+/// the same elements on another configuration) written into `k`, whose pattern is the node
+/// graph of `elements`: row-parallel through the node → element-slot map, each row's
+/// blocks summed in the slots' order (deterministic for any thread count).
+pub(super) fn assemble_rows(elements: &Elements, tets: &[Tet], hexes: &[Hex], k: &mut BlockCsr) {
+    let anp = elements.anp();
+    let nt4 = 4 * tets.len();
+    let BlockCsr { ptr, col, val } = k;
     let rows = split_rows(ptr, val);
     let (ptr, col) = (&*ptr, &*col);
     rows.into_par_iter().enumerate().with_min_len(128).for_each(|(r, row)| {
+        row.iter_mut().for_each(|b| *b = Matrix3::zeros());
         let cols = &col[ptr[r] as usize..ptr[r + 1] as usize];
         let pos = |c: u32| cols.binary_search(&c).expect("node pair in the adjacency pattern");
         for &s in elements.slots.of(r) {
-            let (e, a) = elements.slot(s as usize);
+            let s = s as usize;
+            let (e, a) = if s < nt4 {
+                (tets[s / 4].view(), s % 4)
+            } else {
+                (hexes[(s - nt4) / 8].view(), (s - nt4) % 8)
+            };
             let el = elements.solids[e.mat].material.elastic();
             let lambda = if anp && e.hg.is_none() { -2.0 / 3.0 * el.mu } else { el.lambda() };
             for b in 0..e.len() {
@@ -64,38 +83,6 @@ pub(crate) fn linear_stiffness(elements: &Elements) -> NodalMatrix {
             }
         }
     });
-    let (nodal, ratio) = match anp.then(|| nodal_volumetric(elements)) {
-        Some((nodal, ratio)) => (Some(nodal), ratio),
-        None => (None, Vec::new()),
-    };
-    NodalMatrix { assembled: k, nodal, ratio }
-}
-
-/// [`linear_stiffness`] of the tetrahedra at the positions `x` (`None` with hexahedra, which
-/// keep their reference stiffness, or when a tetrahedron is inverted or flat at `x`).
-pub(crate) fn linear_stiffness_at(elements: &Elements, x: &[Point3<f64>]) -> Option<NodalMatrix> {
-    Some(linear_stiffness(&moved(elements, x)?))
-}
-
-/// The tetrahedra with their gradients and volumes at `x`.
-fn moved(elements: &Elements, x: &[Point3<f64>]) -> Option<Elements> {
-    if !elements.hexes.is_empty() {
-        return None;
-    }
-    Some(elements.for_assembly(moved_tets(elements, x)?))
-}
-
-/// The tetrahedra of `elements` with their gradients and volumes at `x` (`None` when one is
-/// inverted or flat).
-fn moved_tets(elements: &Elements, x: &[Point3<f64>]) -> Option<Vec<Tet>> {
-    elements
-        .tets
-        .par_iter()
-        .map(|t| {
-            let corners = t.nodes.map(|a| x[a as usize]);
-            Tet::new(t.nodes, t.mat, &corners).ok().map(|d| Tet { vol: d.vol, g: d.g, ..*t })
-        })
-        .collect()
 }
 
 /// The node graph of the element connectivity: every row sorted, the diagonal included.

@@ -27,7 +27,7 @@ pub struct VolumetricScratch {
 /// No entry of `C`.
 const NONE: u32 = u32::MAX;
 
-/// The T4ANP nodal volumetric term of `linear_stiffness_at` alone, written into `c` (a term
+/// The T4ANP nodal volumetric term of `K₀` on the configuration `x` alone, written into `c` (a term
 /// built by `linear_stiffness` of the same elements: the pattern is kept, the weights and
 /// values are those at `x`); returns the 99th percentile of `|J − 1|` over the tetrahedra
 /// whose material's `κ/μ` exceeds `above` (0 without any; `None`, `c` untouched, without
@@ -42,26 +42,41 @@ pub(crate) fn volumetric_at(
     if !elements.anp() || !elements.hexes.is_empty() {
         return None;
     }
-    if !move_tets(elements, x, &mut scratch.tets) {
-        return None;
-    }
-    let p99 = percentile_99(elements, &scratch.tets, above, &mut scratch.dj);
+    let mut tets = std::mem::take(&mut scratch.tets);
+    let moved = move_tets(elements, x, &mut tets);
+    let p99 = moved.then(|| {
+        let p99 = percentile_99(elements, &tets, above, &mut scratch.dj);
+        fill_moved(elements, &tets, c, scratch);
+        p99
+    });
+    scratch.tets = tets;
+    p99
+}
+
+/// The T4ANP nodal volumetric term of the tetrahedra `tets` (those of `elements` on another
+/// configuration: their gradients and volumes there) written into `c`, a term built by
+/// `linear_stiffness` of the same elements.
+pub(crate) fn fill_moved(
+    elements: &Elements,
+    tets: &[Tet],
+    c: &mut RankOneSum,
+    scratch: &mut VolumetricScratch,
+) {
     if scratch.entry.len() != 4 * elements.anp_slots.len() || scratch.source.len() != c.t_val.len()
     {
         scratch.entry = entries(elements, c);
         scratch.source = sources(c);
     }
-    fill_rows(elements, &scratch.tets, &scratch.entry, c);
+    fill_rows(elements, tets, &scratch.entry, c);
     let RankOneSum { c_val, t_val, .. } = c;
     t_val.par_iter_mut().zip(scratch.source.par_iter()).with_min_len(1024).for_each(|(v, &s)| {
         *v = c_val[s as usize];
     });
-    Some(p99)
 }
 
 /// The tetrahedra with their gradients and volumes at `x` written into `tets`; `false` when
 /// one is inverted or flat there.
-fn move_tets(elements: &Elements, x: &[Point3<f64>], tets: &mut Vec<Tet>) -> bool {
+pub(super) fn move_tets(elements: &Elements, x: &[Point3<f64>], tets: &mut Vec<Tet>) -> bool {
     tets.clear();
     tets.extend_from_slice(&elements.tets);
     tets.par_iter_mut().with_min_len(256).all(|t| {
@@ -191,7 +206,10 @@ mod tests {
         model.volumetric_at(&half, &mut c, 100.0, &mut scratch).unwrap();
         let dj = model.volumetric_at(&x, &mut c, 100.0, &mut scratch).unwrap();
         assert_eq!(model.volumetric_at(&x, &mut c, 1e9, &mut scratch), Some(0.0));
-        let fresh = model.linear_stiffness_at(&x).unwrap().nodal.unwrap();
+        let mut moved_mesh = mesh.clone();
+        moved_mesh.nodes.clone_from(&x);
+        let moved = Model::uniform(&moved_mesh, solid, opts).unwrap();
+        let fresh = moved.linear_stiffness().nodal.unwrap();
         assert_eq!((&c.c_col, &c.t_col), (&fresh.c_col, &fresh.t_col));
         let close = |a: &[Vector3<f64>], b: &[Vector3<f64>]| {
             a.iter().zip(b).all(|(u, v)| (u - v).amax() <= 1e-12 * (1.0 + v.amax()))

@@ -18,7 +18,7 @@ use bs_mesh::{Point3, Vector3};
 
 use super::outcome::NewtonKrylovError;
 use crate::contact::{Contact, SurfaceFeature};
-use crate::linalg::twolevel::{Constraints, Projector, TwoLevel};
+use crate::linalg::multilevel::{Constraints, Multilevel, Projector};
 
 /// The contact state of one node for one iteration.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -324,7 +324,7 @@ impl ActiveSet {
     /// put them on their features, and lists the tangential springs of curved features.
     pub(crate) fn constrain(
         &self,
-        tl: &TwoLevel,
+        tl: &Multilevel,
         cons: &mut Constraints,
         nodes: &[usize],
         s: &NodeState<'_>,

@@ -9,13 +9,14 @@ use super::active_set::ActiveSet;
 use super::linear::{LinearBuffers, forces};
 use super::outcome::NewtonKrylovError;
 use super::problem::Problem;
+use super::refresh::Following;
 use crate::assembly::Workspace;
 use crate::data::{DataTerm, Springs};
 use crate::linalg::krylov::Gmres;
-use crate::linalg::twolevel::Constraints;
+use crate::linalg::multilevel::Constraints;
 
 /// The iterate and the buffers of a solve.
-pub(crate) struct Iterate {
+pub(crate) struct Iterate<'a> {
     pub u: Vec<Vector3<f64>>,
     /// Internal forces at `u`.
     pub f: Vec<Vector3<f64>>,
@@ -30,6 +31,8 @@ pub(crate) struct Iterate {
     pub data: Springs,
     pub positions: Vec<Point3<f64>>,
     pub active: ActiveSet,
+    /// The preconditioner, following the state.
+    pub pre: Following<'a>,
     pub cons: Constraints,
     pub ws: Workspace,
     pub linear: LinearBuffers,
@@ -42,11 +45,11 @@ pub(crate) struct Iterate {
     pub err: f64,
 }
 
-impl Iterate {
+impl<'a> Iterate<'a> {
     /// The start state (zero displacement without one), the data term linearised there,
     /// and its forces.
     pub(crate) fn new(
-        pb: &Problem<'_>,
+        pb: &Problem<'a>,
         work: &mut Work,
         data: &mut dyn DataTerm,
     ) -> Result<Self, NewtonKrylovError> {
@@ -64,14 +67,15 @@ impl Iterate {
             data: Springs::new(),
             positions: pb.model.reference().to_vec(),
             active: ActiveSet::new(pb.nodes.len()),
-            cons: pb.tl().constraints(),
+            pre: Following::new(pb.base, n),
+            cons: pb.base.constraints(),
             ws: pb.model.workspace(),
             linear: LinearBuffers {
                 up: zeros.clone(),
                 fd: zeros.clone(),
                 rhs: zeros,
                 gmres: Gmres::new(n, pb.params.restart),
-                tl: pb.tl().scratch(),
+                tl: pb.base.scratch(),
                 mixed: None,
             },
             phi: f64::INFINITY,
@@ -123,7 +127,7 @@ pub(crate) struct Converged {
 
 impl Converged {
     /// The start state of a solve.
-    pub(crate) fn start(it: &Iterate) -> Self {
+    pub(crate) fn start(it: &Iterate<'_>) -> Self {
         Converged {
             u: it.u.clone(),
             f: it.f.clone(),
@@ -135,7 +139,7 @@ impl Converged {
     }
 
     /// A level converged at `it`: it becomes the last state, the last one the one before.
-    pub(crate) fn push(&mut self, it: &Iterate) {
+    pub(crate) fn push(&mut self, it: &Iterate<'_>) {
         let before = std::mem::replace(&mut self.u, it.u.clone());
         self.before = Some(before);
         self.f.copy_from_slice(&it.f);
@@ -145,7 +149,7 @@ impl Converged {
     }
 
     /// A level failed: `it` goes back to the last converged state.
-    pub(crate) fn restore(&self, it: &mut Iterate) {
+    pub(crate) fn restore(&self, it: &mut Iterate<'_>) {
         it.u.copy_from_slice(&self.u);
         it.f.copy_from_slice(&self.f);
         it.data.clone_from(&self.data);

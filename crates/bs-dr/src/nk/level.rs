@@ -18,7 +18,6 @@ use super::loading::{self, Schedule};
 use super::merit::Merit;
 use super::outcome::NewtonKrylovError;
 use super::problem::Problem;
-use super::refresh;
 use super::termination::{Failure, Iteration, Termination, Verdict};
 use crate::contact::{Contact, ContactReport};
 use crate::data::DataTerm;
@@ -48,7 +47,7 @@ pub(crate) enum Level {
 /// Solves one level (see the module documentation).
 pub(crate) fn solve(
     pb: &Problem<'_>,
-    it: &mut Iterate,
+    it: &mut Iterate<'_>,
     work: &mut Work,
     start: Start<'_>,
     contact: &mut dyn Contact,
@@ -57,11 +56,6 @@ pub(crate) fn solve(
 ) -> Result<Level, NewtonKrylovError> {
     let p = pb.params;
     let c = &p.continuation;
-    // A preconditioner rebuilt during the last level does not serve this one.
-    if pb.pre.reset() {
-        it.cons = pb.tl().constraints();
-        it.linear.tl = pb.tl().scratch();
-    }
     let mut applied = start.done;
     let mut warm = false;
     if let Some((before, s)) = start.secant
@@ -104,7 +98,8 @@ pub(crate) fn solve(
         // 2. The direction: a load step, or an equilibrium (Newton) step.
         let load = schedule.load_now(it.phi);
         let rtol = forcing.rtol(load, change.changes, pb.nodes.len());
-        let linear_before = work.linear;
+        // The preconditioner rebuilt on the iterate once the elements have deformed enough
+        // since it was built.
         let sub = if load {
             loading::load_step(pb, it, work, &schedule, rtol, contact)
         } else {
@@ -153,16 +148,6 @@ pub(crate) fn solve(
             penetration: report.max_penetration,
             phi: it.phi,
         });
-        // After a slow linear solve, unless the level is done: the preconditioner rebuilt
-        // on the new configuration.
-        if verdict == Verdict::Continue
-            && p.refresh_preconditioner
-            && refresh::slow(rtol, work.linear - linear_before)
-            && pb.pre.refresh(pb.model, &it.u, &pb.fixed, pb.params.preconditioner, work)
-        {
-            it.cons = pb.tl().constraints();
-            it.linear.tl = pb.tl().scratch();
-        }
         it.active.settle();
         match verdict {
             Verdict::Continue => {}
@@ -192,7 +177,7 @@ const MAX_JUMPS_PER: usize = 1000;
 /// left in `it.trial_u` / `it.trial_f`. `None` when no trial could be evaluated.
 fn search(
     pb: &Problem<'_>,
-    it: &mut Iterate,
+    it: &mut Iterate<'_>,
     work: &mut Work,
     first: f64,
     load: bool,
@@ -235,7 +220,7 @@ fn would_invert(pb: &Problem<'_>, element: Option<usize>) -> LoadFailure {
 /// Guards (not finite, diverged), the contact report of the iterate and the observer.
 fn observe(
     pb: &Problem<'_>,
-    it: &mut Iterate,
+    it: &mut Iterate<'_>,
     work: &mut Work,
     lambda: f64,
     contact: &mut dyn Contact,

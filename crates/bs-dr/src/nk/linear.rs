@@ -16,8 +16,8 @@ use super::mixed::{MixedBuffers, Tolerance};
 use crate::assembly::{Inversion, Workspace};
 use crate::data::Springs;
 use crate::linalg::krylov::{Gmres, GmresInfo};
+use crate::linalg::multilevel::{Constraints, Multilevel, MultilevelScratch};
 use crate::linalg::sparse::max_abs;
-use crate::linalg::twolevel::{Constraints, TwoLevel, TwoLevelScratch};
 use crate::model::Model;
 
 /// The forces of the energy the solve minimises at `u`: the internal forces plus the data
@@ -51,7 +51,7 @@ pub(crate) struct LinearBuffers {
     pub fd: Vec<Vector3<f64>>,
     pub rhs: Vec<Vector3<f64>>,
     pub gmres: Gmres,
-    pub tl: TwoLevelScratch,
+    pub tl: MultilevelScratch,
     /// The mixed form's buffers, made at the first solve with a split preconditioner.
     pub mixed: Option<MixedBuffers>,
 }
@@ -70,7 +70,7 @@ pub(crate) struct Linearisation<'a> {
     /// Tangential springs of held nodes on curved features: `(node, stiffness)`.
     pub springs: &'a [(usize, f64)],
     pub cons: &'a Constraints,
-    pub tl: &'a TwoLevel,
+    pub tl: &'a Multilevel,
     /// Whether GMRES ends after a restart cycle that stalled: under a body force alone
     /// (nothing prescribed moves), where a brain that floats before the skull holds it has
     /// a nearly singular tangent and restarted GMRES stalls (docs/decisions.md).

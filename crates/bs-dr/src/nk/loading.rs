@@ -83,7 +83,7 @@ impl Schedule {
 /// then the linear solve to the relative residual `rtol`.
 pub(crate) fn direction(
     pb: &Problem<'_>,
-    it: &mut Iterate,
+    it: &mut Iterate<'_>,
     work: &mut Work,
     lambda: Option<f64>,
     rtol: f64,
@@ -93,17 +93,24 @@ pub(crate) fn direction(
         None => it.particular.iter_mut().for_each(|v| *v = Vector3::zeros()),
     }
     it.active.constrain(
-        pb.tl(),
+        it.pre.get(),
         &mut it.cons,
         &pb.nodes,
         &pb.node_state(&it.u, &it.f),
         &mut it.particular,
         &mut it.springs,
     );
-    // The coarse matrix for the contact constraints (live sessions; see
-    // `TwoLevel::constrain_coarse`).
+    // The preconditioner rebuilt on the iterate, its coarse levels for these constraints,
+    // once the elements have deformed enough since it was built; else the coarse levels
+    // for the contact constraints (see `Multilevel::constrain_coarse`).
+    if it.pre.stale(pb.model, &it.u, pb.params.rebuild_strain)
+        && it.pre.rebuild(pb.model, &it.u, &pb.fixed, &it.cons.projector, work)
+    {
+        it.cons = it.pre.get().constraints_like(&it.cons);
+        it.linear.tl = it.pre.get().scratch();
+    }
     let t = Instant::now();
-    pb.tl().constrain_coarse(&mut it.cons);
+    it.pre.get().constrain_coarse(&mut it.cons);
     work.time.preconditioner += t.elapsed();
     let lin = Linearisation {
         model: pb.model,
@@ -114,7 +121,7 @@ pub(crate) fn direction(
         particular: &it.particular,
         springs: &it.springs,
         cons: &it.cons,
-        tl: pb.tl(),
+        tl: it.pre.get(),
         stall_exit: pb.load == 0.0 && !pb.loads.forces().is_empty(),
     };
     let max = pb.params.max_linear_iterations;
@@ -130,7 +137,7 @@ pub(crate) fn direction(
 /// documentation). Returns the load fraction the step aims at.
 pub(crate) fn load_step(
     pb: &Problem<'_>,
-    it: &mut Iterate,
+    it: &mut Iterate<'_>,
     work: &mut Work,
     s: &Schedule,
     rtol: f64,
@@ -176,7 +183,7 @@ pub(crate) fn load_step(
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn predict(
     pb: &Problem<'_>,
-    it: &mut Iterate,
+    it: &mut Iterate<'_>,
     work: &mut Work,
     before: &[Vector3<f64>],
     s: f64,

@@ -15,7 +15,7 @@ use rayon::prelude::*;
 
 use super::outcome::NewtonKrylovError;
 use crate::contact::Contact;
-use crate::linalg::twolevel::Projector;
+use crate::linalg::multilevel::Projector;
 use crate::model::Model;
 
 /// The natural residual of a trial, and what it would be without the contact nodes whose

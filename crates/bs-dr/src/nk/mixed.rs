@@ -9,14 +9,14 @@ use bs_mesh::{Point3, Vector3};
 
 use crate::assembly::VolumetricScratch;
 use crate::linalg::krylov::{Gmres, GmresInfo, NodalMap};
-use crate::linalg::sparse::RankOneSum;
-use crate::linalg::twolevel::{
-    Constraints, SplitScratch, TwoLevel, TwoLevelScratch, VolumetricSplit,
+use crate::linalg::multilevel::{
+    Constraints, Multilevel, MultilevelScratch, SplitScratch, VolumetricSplit,
 };
+use crate::linalg::sparse::RankOneSum;
 use crate::model::Model;
 
-/// A split and the preconditioner of its block ([`TwoLevel::split`]).
-pub(crate) type Split<'a> = (&'a VolumetricSplit, &'a TwoLevel);
+/// A split and the preconditioner of its block ([`Multilevel::split`]).
+pub(crate) type Split<'a> = (&'a VolumetricSplit, &'a Multilevel);
 
 /// Stopping rule of a linear solve.
 #[derive(Debug, Clone, Copy)]
@@ -34,7 +34,7 @@ pub(crate) struct MixedBuffers {
     pub x: Vec<Vector3<f64>>,
     apply: SplitScratch,
     precondition: SplitScratch,
-    tl: TwoLevelScratch,
+    tl: MultilevelScratch,
     /// The volumetric term at the linearisation point.
     term: RankOneSum,
     positions: Vec<Point3<f64>>,

@@ -5,7 +5,7 @@
 //! Each iteration solves the linearised equilibrium with GMRES ([`linear`]), applying the
 //! Jacobian of the internal forces matrix-free (a forward difference of
 //! [`Model::internal_forces_into`], so every element technology is linearised exactly as its
-//! force kernel) and preconditioning with [`TwoLevel`], which depends only on mesh,
+//! force kernel) and preconditioning with [`Multilevel`], which depends only on mesh,
 //! materials and fixed components and is prepared once ([`NewtonKrylov::prepare`]). Under
 //! large deformations `K₀` drifts from the tangent: after a slow linear solve with elements
 //! compressed or stretched by more than 40 %, the preconditioner is rebuilt on the current
@@ -84,10 +84,9 @@ use self::continuation::Continuation;
 use self::iterate::{Converged, Iterate};
 use self::level::{Level, Start};
 use self::problem::Problem;
-use self::refresh::Preconditioners;
 use crate::contact::{Contact, ContactReport};
 use crate::data::{DataTerm, NoData};
-use crate::linalg::twolevel::{Projector, TwoLevel};
+use crate::linalg::multilevel::{Multilevel, Projector};
 use crate::loads::Loads;
 use crate::model::Model;
 use crate::solver::{Breakdown, LoadFailure, Progress, Solution, SolveError, Solver};
@@ -120,7 +119,7 @@ pub struct WarmStart<'a> {
 /// computed before the loads are known and reused for any number of solves.
 #[derive(Debug)]
 pub struct Preparation {
-    preconditioner: TwoLevel,
+    preconditioner: Multilevel,
     /// `γ_a = 3 / tr K₀,aa`, the nodal compliance that scales forces to lengths.
     compliance: Vec<f64>,
     /// Which components were fixed when it was built.
@@ -129,7 +128,7 @@ pub struct Preparation {
 
 impl Preparation {
     /// The preconditioner.
-    pub fn preconditioner(&self) -> &TwoLevel {
+    pub fn preconditioner(&self) -> &Multilevel {
         &self.preconditioner
     }
 
@@ -196,7 +195,7 @@ impl NewtonKrylov {
         let fixed = fixed_projector(loads);
         let k0 = model.linear_stiffness();
         let (x, h) = (model.reference(), model.mean_edge());
-        let preconditioner = TwoLevel::new(k0, x, h, &fixed, self.params.preconditioner)
+        let preconditioner = Multilevel::new(k0, x, h, &fixed, self.params.preconditioner)
             .map_err(|e| NewtonKrylovError::Preconditioner { reason: e.to_string() })?;
         let compliance = (0..n)
             .into_par_iter()
@@ -273,8 +272,7 @@ impl NewtonKrylov {
     ) -> Result<Solution<NewtonKrylovInfo>, NewtonKrylovError> {
         let start = Instant::now();
         let start_state = warm.as_ref().map(|w| w.state);
-        let pre = Preconditioners::new(&prep.preconditioner);
-        let pb = Problem::new(&self.params, model, loads, prep, &pre, &*contact, start_state)?;
+        let pb = Problem::new(&self.params, model, loads, prep, &*contact, start_state)?;
         let mut work = Work::default();
         let mut it = Iterate::new(&pb, &mut work, data)?;
         let mut saved = Converged::start(&it);
@@ -379,7 +377,7 @@ impl NewtonKrylov {
     fn finish(
         &self,
         pb: &Problem<'_>,
-        mut it: Iterate,
+        mut it: Iterate<'_>,
         cont: &Continuation,
         work: Work,
         contact: &mut dyn Contact,

@@ -2,7 +2,7 @@
 //! of its two named parts that a user may want to tune, the load continuation and the line
 //! search.
 
-use crate::linalg::twolevel::TwoLevelParams;
+use crate::linalg::multilevel::MultilevelParams;
 use crate::solver::{InvalidParam, ToleranceUnit, param};
 
 /// How the prescribed displacements are applied: in increments of the load fraction λ
@@ -114,12 +114,12 @@ pub struct NewtonKrylovParams {
     /// The line search.
     pub line_search: LineSearchParams,
     /// The preconditioner's parameters.
-    pub preconditioner: TwoLevelParams,
-    /// Rebuild the preconditioner on the deformed configuration after a slow linear solve
-    /// when the elements have changed volume by more than 40 % and the material is not
-    /// nearly incompressible (κ/μ ≤ 100; at most twice per solve; see `nk::refresh`).
-    /// Default true.
-    pub refresh_preconditioner: bool,
+    pub preconditioner: MultilevelParams,
+    /// Rebuild the preconditioner on the current configuration before a linear solve once
+    /// the elements have deformed this much since it was built (the volume-weighted root
+    /// mean square of `‖ΔF‖`, `Model::strain_change`; see `nk::refresh`); infinity never
+    /// rebuilds. Default 0.05.
+    pub rebuild_strain: f64,
 }
 
 impl Default for NewtonKrylovParams {
@@ -136,8 +136,8 @@ impl Default for NewtonKrylovParams {
             divergence_factor: 100.0,
             continuation: ContinuationParams::default(),
             line_search: LineSearchParams::default(),
-            preconditioner: TwoLevelParams::default(),
-            refresh_preconditioner: true,
+            preconditioner: MultilevelParams::default(),
+            rebuild_strain: 0.05,
         }
     }
 }
@@ -202,6 +202,7 @@ impl NewtonKrylovParams {
             l.min_fraction > 0.0 && l.min_fraction <= 1.0,
             "must lie in (0, 1]",
         )?;
+        param("rebuild_strain", self.rebuild_strain, self.rebuild_strain > 0.0, "must be > 0")?;
         let t = &self.preconditioner;
         param("aggregate_size", t.aggregate_size, t.aggregate_size > 0.0, "must be > 0")?;
         at_least_one("degree", t.degree)?;

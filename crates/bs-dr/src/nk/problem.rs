@@ -5,10 +5,9 @@ use bs_mesh::Vector3;
 
 use super::merit::Merit;
 use super::outcome::NewtonKrylovError;
-use super::refresh::Preconditioners;
 use super::{NewtonKrylovParams, Preparation};
 use crate::contact::Contact;
-use crate::linalg::twolevel::{Projector, TwoLevel};
+use crate::linalg::multilevel::{Multilevel, Projector};
 use crate::loads::Loads;
 use crate::model::Model;
 use crate::solver::load_scale;
@@ -19,8 +18,8 @@ use super::active_set::NodeState;
 pub(crate) struct Problem<'a> {
     pub model: &'a Model,
     pub loads: &'a Loads,
-    /// The preconditioner in use and the ones a slow solve may still build.
-    pub pre: &'a Preconditioners<'a>,
+    /// The preparation's preconditioner (built at the reference state).
+    pub base: &'a Multilevel,
     /// Nodal compliances `γ_a = 3 / tr K₀,aa`.
     pub gamma: &'a [f64],
     /// The fixed components' projector.
@@ -47,7 +46,6 @@ impl<'a> Problem<'a> {
         model: &'a Model,
         loads: &'a Loads,
         prep: &'a Preparation,
-        pre: &'a Preconditioners<'a>,
         contact: &dyn Contact,
         start: Option<&'a [Vector3<f64>]>,
     ) -> Result<Self, NewtonKrylovError> {
@@ -85,7 +83,7 @@ impl<'a> Problem<'a> {
         Ok(Problem {
             model,
             loads,
-            pre,
+            base: &prep.preconditioner,
             gamma: &prep.compliance,
             fixed: prep.preconditioner.constraints().projector,
             nodes,
@@ -96,11 +94,6 @@ impl<'a> Problem<'a> {
             load: change(loads, start),
             start,
         })
-    }
-
-    /// The preconditioner in use.
-    pub(crate) fn tl(&self) -> &TwoLevel {
-        self.pre.current()
     }
 
     /// The prescribed value of component `k` of node `a` at load fraction `lambda`: from

@@ -1,4 +1,5 @@
-//! The preconditioner against Jacobi on a nearly incompressible block, and its symmetry.
+//! The preconditioner against Jacobi on a nearly incompressible block, its symmetry, its
+//! coarse levels against dense Galerkin products, its rebuilds and its depth.
 
 use bs_material::Material;
 use bs_mesh::Vector3;
@@ -6,21 +7,18 @@ use bs_mesh::structured::box_mesh;
 use nalgebra::Matrix3;
 
 use super::projector::projected_inverse;
-use super::{Projector, TwoLevel, TwoLevelParams};
+use super::{Multilevel, MultilevelParams, Projector};
 use crate::linalg::krylov::Gmres;
 use crate::linalg::sparse::dot;
 use crate::{Model, ModelOptions, Solid, TetFormulation};
 
 /// The preconditioner of `m`'s `K₀` with constraints `fixed`.
-fn preconditioner(m: &Model, fixed: &Projector) -> TwoLevel {
-    TwoLevel::new(
-        m.linear_stiffness(),
-        m.reference(),
-        m.mean_edge(),
-        fixed,
-        TwoLevelParams::default(),
-    )
-    .unwrap()
+fn preconditioner(m: &Model, fixed: &Projector) -> Multilevel {
+    with_params(m, fixed, MultilevelParams::default())
+}
+
+fn with_params(m: &Model, fixed: &Projector, params: MultilevelParams) -> Multilevel {
+    Multilevel::new(m.linear_stiffness(), m.reference(), m.mean_edge(), fixed, params).unwrap()
 }
 
 fn model(tet: TetFormulation, cells: usize) -> Model {
@@ -159,7 +157,7 @@ fn the_cycle_is_symmetric_and_positive() {
 
 /// GMRES iterations (to 1e-8) of `Π K₀ Π x = Π b` with the two-level preconditioner `tl`
 /// under the constraints `con`.
-fn constrained_iterations(m: &Model, tl: &TwoLevel, con: &super::Constraints) -> usize {
+fn constrained_iterations(m: &Model, tl: &Multilevel, con: &super::Constraints) -> usize {
     let pi = &con.projector;
     let mut b: Vec<Vector3<f64>> =
         m.reference().iter().map(|x| Vector3::new(0.1 * x.z, 0.05 * x.y, -0.05 * x.x)).collect();
@@ -169,15 +167,49 @@ fn constrained_iterations(m: &Model, tl: &TwoLevel, con: &super::Constraints) ->
     projected_gmres(m, pi, &b, &mut prec).iterations
 }
 
-/// `A⁻¹ c` with a coarse factor.
-fn coarse_solve(c: &super::coarse::Coarse, rhs: &[f64]) -> Vec<f64> {
+/// `Pᵀ K P` formed densely (`K` applied to every column of the 3 × 6 block prolongator
+/// `P`), with a unit diagonal for the columns `P` dropped (all zero).
+fn dense_galerkin(
+    k: &crate::linalg::nodal::NodalMatrix,
+    p: &super::products::FineP,
+    nc: usize,
+) -> nalgebra::DMatrix<f64> {
+    let n = p.rows();
+    let mut cols: Vec<Vec<Vector3<f64>>> = vec![vec![Vector3::zeros(); n]; nc];
+    for a in 0..n {
+        let (c, v) = p.row(a);
+        for (&j, b) in c.iter().zip(v) {
+            for m in 0..6 {
+                cols[6 * j as usize + m][a] = Vector3::new(b[(0, m)], b[(1, m)], b[(2, m)]);
+            }
+        }
+    }
+    let mut s = k.scratch();
+    let mut kc = vec![Vector3::zeros(); n];
+    let mut g = nalgebra::DMatrix::zeros(nc, nc);
+    for j in 0..nc {
+        k.mul(&cols[j], &mut kc, &mut s);
+        for i in 0..nc {
+            g[(i, j)] = dot(&cols[i], &kc);
+        }
+        if cols[j].iter().all(|v| *v == Vector3::zeros()) {
+            g[(j, j)] = 1.0;
+        }
+    }
+    g
+}
+
+/// `A⁻¹ c` with the coarse levels of a two-level preconditioner (the first coarse level
+/// factorised).
+fn coarse_solve(levels: &super::levels::Levels, rhs: &[f64]) -> Vec<f64> {
     use faer::dyn_stack::{MemBuffer, MemStack};
     use faer::sparse::linalg::cholesky::LltRef;
     use faer::{Conj, MatMut, Par};
+    assert!(levels.smoothed.is_empty(), "a two-level preconditioner");
     let mut x = rhs.to_vec();
     let n = x.len();
-    let mut mem = MemBuffer::new(c.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
-    LltRef::new(&c.symbolic, &c.values).solve_in_place_with_conj(
+    let mut mem = MemBuffer::new(levels.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
+    LltRef::new(&levels.symbolic, &levels.factor).solve_in_place_with_conj(
         Conj::No,
         MatMut::from_column_major_slice_mut(&mut x, n, 1),
         Par::Seq,
@@ -186,15 +218,18 @@ fn coarse_solve(c: &super::coarse::Coarse, rhs: &[f64]) -> Vec<f64> {
     x
 }
 
+/// Two levels: the first coarse level factorised.
+fn two_levels() -> MultilevelParams {
+    MultilevelParams { max_levels: 2, ..MultilevelParams::default() }
+}
+
 #[test]
 fn the_coarse_matrix_of_contact_constraints_is_their_galerkin_matrix_and_saves_iterations() {
-    use super::coarse::galerkin;
-    use super::rows::{NodeRows, product, transpose};
     let m = model(TetFormulation::T4Anp, 6);
     let fixed = bottom_fixed(&m);
-    let params = TwoLevelParams { contact_coarse: true, ..TwoLevelParams::default() };
-    let tl =
-        TwoLevel::new(m.linear_stiffness(), m.reference(), m.mean_edge(), &fixed, params).unwrap();
+    let params = MultilevelParams { contact_coarse: true, ..two_levels() };
+    let tl = Multilevel::new(m.linear_stiffness(), m.reference(), m.mean_edge(), &fixed, params)
+        .unwrap();
     // The top face held along a curved surface's normals and a patch of a side face along
     // its normal, as contact holds nodes on the skull.
     let mut con = tl.constraints();
@@ -218,58 +253,33 @@ fn the_coarse_matrix_of_contact_constraints_is_their_galerkin_matrix_and_saves_i
         "{with_constrained_coarse} vs {with_setup_coarse}"
     );
     // Against the Galerkin matrix of the explicitly projected prolongator, `(Π P)ᵀ K₀ (Π P)`
-    // from the whole product, ordered and factorised anew (the constraints' one corrects
-    // the setup's `Pᵀ K₀ P` on the held rows and reuses its symbolic factor).
-    let r = tl.retained.as_ref().unwrap();
+    // formed densely column by column and factorised by nalgebra (the constraints' one
+    // corrects the setup's `Pᵀ K₀ P` on the held rows and reuses its symbolic factor).
     let pi = &con.projector;
-    let rows = (0..r.p.rows())
-        .map(|a| {
-            let (cols, vals) = r.p.row(a);
-            cols.iter().zip(vals).map(|(&j, v)| (j, pi.matrix[a] * v)).collect()
-        })
-        .collect();
-    let pp = NodeRows::from_rows(rows);
+    let mut pp = tl.structure.p.clone();
+    for (a, row) in pp.rows_mut().into_iter().enumerate() {
+        row.iter_mut().for_each(|b| *b = pi.matrix[a] * *b);
+    }
     let nc = tl.coarse_size();
-    let k = m.linear_stiffness();
-    let direct = galerkin(&transpose(&pp, nc), &product(&k.assembled, k.nodal.as_ref(), &pp), nc)
-        .unwrap()
-        .factor;
     let rhs: Vec<f64> = (0..nc).map(|i| (0.7 * i as f64).sin() + 0.1).collect();
-    let (x1, x2) = (coarse_solve(con.coarse.as_ref().unwrap(), &rhs), coarse_solve(&direct, &rhs));
-    let err = x1.iter().zip(&x2).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    let x1 = coarse_solve(&con.levels.as_ref().unwrap().levels, &rhs);
+    let x2 = dense_galerkin(&m.linear_stiffness(), &pp, nc)
+        .cholesky()
+        .unwrap()
+        .solve(&nalgebra::DVector::from_column_slice(&rhs));
+    let x2 = x2.as_slice();
+    let err = x1.iter().zip(x2).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
     let scale = x2.iter().map(|v| v.abs()).fold(0.0, f64::max);
     assert!(err <= 1e-9 * scale, "{err} against {scale}");
     // No node held: back to the setup's coarse matrix.
     let mut free = tl.constraints();
     assert!(!tl.constrain_coarse(&mut free));
-    assert!(free.coarse.is_none());
-}
-
-/// The contact set's coarse matrix is kept where its factor is sparse next to `K₀` (large
-/// aggregates) and not where it is about as dense (aggregates of a node or two), where a
-/// rebuild would cost as much as several GMRES iterations.
-#[test]
-fn the_contact_coarse_matrix_is_kept_only_where_its_factor_is_sparse() {
-    let m = model(TetFormulation::T4Anp, 6);
-    let fixed = bottom_fixed(&m);
-    let kept = |aggregate_size: f64| {
-        let params =
-            TwoLevelParams { contact_coarse: true, aggregate_size, ..TwoLevelParams::default() };
-        let k = m.linear_stiffness();
-        let tl = TwoLevel::new(k, m.reference(), m.mean_edge(), &fixed, params).unwrap();
-        let (_, factor, _) = tl.sizes();
-        let fill = factor as f64 / (9 * m.linear_stiffness().assembled.col.len()) as f64;
-        (tl.retained.is_some(), fill)
-    };
-    let (sparse, fill) = kept(4.2);
-    assert!(sparse && fill < 0.5, "aggregates of 4.2 edges: kept, fill {fill}");
-    let (dense, fill) = kept(1.0);
-    assert!(!dense && fill > 0.5, "aggregates of one edge: not kept, fill {fill}");
+    assert!(free.levels.is_none());
 }
 
 /// GMRES iterations (to 1e-8) of `Π K₀ Π u = b` in the mixed form of the split of `tl`, and
 /// the relative residual of the displacements it returns in `Π K₀ Π u = b` itself.
-fn mixed_iterations(m: &Model, tl: &TwoLevel, fixed: &Projector) -> (usize, f64) {
+fn mixed_iterations(m: &Model, tl: &Multilevel, fixed: &Projector) -> (usize, f64) {
     let (split, block_tl) = tl.split().expect("a split preconditioner");
     let n = m.node_count();
     let b = shear_load(m, fixed);
@@ -331,4 +341,120 @@ fn the_mixed_form_solves_the_same_system_in_fewer_iterations_near_incompressibil
         let fewer = mixed as f64 <= share * whole as f64;
         assert!(mixed <= bound && fewer, "ν = {nu}: {mixed} against {whole}");
     }
+}
+
+/// A smooth deformation of the block of side 10 changing volumes by up to about 15 %.
+fn deformed(m: &Model) -> Vec<bs_mesh::Point3<f64>> {
+    m.reference()
+        .iter()
+        .map(|p| p + Vector3::new(0.01 * p.x * p.y, 0.3 * (0.3 * p.z).sin(), -0.015 * p.x * p.z))
+        .collect()
+}
+
+#[test]
+fn a_rebuild_is_the_galerkin_preconditioner_of_the_new_operator() {
+    let m = model(TetFormulation::T4Anp, 5);
+    let fixed = bottom_fixed(&m);
+    let tl = with_params(&m, &fixed, two_levels());
+    let mut k = m.linear_stiffness();
+    let mut scratch = crate::assembly::StiffnessScratch::default();
+    assert!(m.stiffness_at_into(&deformed(&m), &mut k, &mut scratch));
+    let rebuilt = tl.rebuilt(&k, &fixed, &fixed).unwrap();
+    let n = m.node_count();
+    for a in [0, n / 2, n - 1] {
+        assert_eq!(rebuilt.diagonal(a), k.diagonal(a));
+    }
+    // Its coarse factor solves the dense Galerkin system of the new operator in the setup's
+    // coarse space.
+    let nc = tl.coarse_size();
+    let rhs: Vec<f64> = (0..nc).map(|i| (1.3 * i as f64).cos() - 0.2).collect();
+    let x1 = coarse_solve(&rebuilt.levels.levels, &rhs);
+    let g = dense_galerkin(&k, &tl.structure.p, nc);
+    let x2 = g.clone().cholesky().unwrap().solve(&nalgebra::DVector::from_column_slice(&rhs));
+    let scale = x2.iter().map(|v| v.abs()).fold(0.0, f64::max);
+    let err = x1.iter().zip(x2.iter()).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    assert!(err <= 1e-9 * scale, "{err} against {scale}");
+    // Rebuilt on the setup's own operator, it is the setup's, to the last bit.
+    let same = tl.rebuilt(&m.linear_stiffness(), &fixed, &fixed).unwrap();
+    assert_eq!(same.levels.levels.factor, tl.levels.levels.factor);
+    assert_eq!(same.structure.p.len(), tl.structure.p.len());
+}
+
+#[test]
+fn a_rebuild_saves_iterations_on_the_moved_operator() {
+    // GMRES on the moved operator with the setup's preconditioner (of K₀) and with the one
+    // rebuilt on the moved operator.
+    let m = model(TetFormulation::T4Anp, 6);
+    let fixed = bottom_fixed(&m);
+    let tl = preconditioner(&m, &fixed);
+    let x: Vec<bs_mesh::Point3<f64>> = m
+        .reference()
+        .iter()
+        .map(|p| p + Vector3::new(0.03 * p.x * p.y, 0.6 * (0.3 * p.z).sin(), -0.035 * p.x * p.z))
+        .collect();
+    let mut k = m.linear_stiffness();
+    assert!(m.stiffness_at_into(&x, &mut k, &mut crate::assembly::StiffnessScratch::default()));
+    let rebuilt = tl.rebuilt(&k, &fixed, &fixed).unwrap();
+    let b = shear_load(&m, &fixed);
+    let count = |p: &Multilevel| {
+        let con = p.constraints();
+        let mut ts = p.scratch();
+        let mut prec = |r: &[Vector3<f64>], z: &mut [Vector3<f64>]| p.apply(&con, r, z, &mut ts);
+        let mut ks = k.scratch();
+        let mut op = |v: &[Vector3<f64>], y: &mut [Vector3<f64>]| {
+            k.mul(v, y, &mut ks);
+            fixed.apply(y);
+        };
+        let mut sol = vec![Vector3::zeros(); m.node_count()];
+        let info =
+            Gmres::new(m.node_count(), 60).solve(&mut op, &mut prec, &b, &mut sol, 1e-8, 3000);
+        assert!(info.converged);
+        info.iterations
+    };
+    let (stale, fresh) = (count(&tl), count(&rebuilt));
+    assert!(fresh < stale, "rebuilt {fresh} against the setup's {stale} iterations");
+}
+
+/// `(xᵀ B y, yᵀ B x)` and `(xᵀ B x, yᵀ B y)` of the cycle `B` of `tl` on two fixed vectors.
+fn cycle_forms(m: &Model, tl: &Multilevel, fixed: &Projector) -> ((f64, f64), (f64, f64)) {
+    let con = tl.constraints();
+    let n = m.node_count();
+    let mut x: Vec<Vector3<f64>> =
+        (0..n).map(|a| Vector3::new((a as f64).sin(), 0.5, (0.3 * a as f64).cos())).collect();
+    let mut y: Vec<Vector3<f64>> =
+        (0..n).map(|a| Vector3::new(1.0, (1.7 * a as f64).cos(), -0.2)).collect();
+    fixed.apply(&mut x);
+    fixed.apply(&mut y);
+    let (mut bx, mut by) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]);
+    let mut s = tl.scratch();
+    tl.apply(&con, &x, &mut bx, &mut s);
+    tl.apply(&con, &y, &mut by, &mut s);
+    ((dot(&x, &by), dot(&y, &bx)), (dot(&x, &bx), dot(&y, &by)))
+}
+
+#[test]
+fn a_deeper_hierarchy_is_symmetric_and_keeps_the_iterations_of_two_levels() {
+    let m = model(TetFormulation::T4Anp, 12);
+    let fixed = bottom_fixed(&m);
+    let small =
+        MultilevelParams { aggregate_size: 1.5, coarsest: 60, ..MultilevelParams::default() };
+    let deep = with_params(&m, &fixed, small);
+    let (unknowns, _, _) = deep.sizes();
+    assert!(unknowns.len() >= 3, "coarse levels {unknowns:?}");
+    assert!(unknowns.windows(2).all(|w| w[1] < w[0]) && *unknowns.last().unwrap() <= 60 * 6);
+    let ((xby, ybx), (xbx, yby)) = cycle_forms(&m, &deep, &fixed);
+    assert!((xby - ybx).abs() <= 1e-9 * xby.abs().max(ybx.abs()), "{xby} vs {ybx}");
+    assert!(xbx > 0.0 && yby > 0.0);
+    // GMRES with the deep hierarchy against the same aggregates solved exactly below the
+    // first coarse level (two levels).
+    let two = with_params(&m, &fixed, MultilevelParams { max_levels: 2, ..small });
+    let b = shear_load(&m, &fixed);
+    let count = |tl: &Multilevel| {
+        let con = tl.constraints();
+        let mut ts = tl.scratch();
+        let mut prec = |r: &[Vector3<f64>], z: &mut [Vector3<f64>]| tl.apply(&con, r, z, &mut ts);
+        projected_gmres(&m, &fixed, &b, &mut prec).iterations
+    };
+    let (d, t) = (count(&deep), count(&two));
+    assert!(d as f64 <= 1.3 * t as f64, "{unknowns:?}: {d} against {t} with two levels");
 }

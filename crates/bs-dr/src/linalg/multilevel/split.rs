@@ -11,7 +11,7 @@
 //! `J − Cᵀ (1−α)W C`, with `C` and `W` taken on the current configuration). A second
 //! two-level preconditioner is built for the block `E + Cᵀ αW C`, which keeps the share
 //! [`BLOCK_SHARE`] of the volumetric stiffness of every term stiffer than
-//! `TwoLevelParams::split_above` times its shear; the rest is the multiplier `p` (an
+//! `MultilevelParams::split_above` times its shear; the rest is the multiplier `p` (an
 //! augmented Lagrangian: Fortin & Glowinski 1983; Benzi & Olshanskii, *SIAM J. Sci.
 //! Comput.* 28, 2006). The preconditioner is block upper
 //! triangular, `p = −r_p / s`, `u = B (r_u − Π Cᵀ p)`, with the Schur complement
@@ -45,7 +45,7 @@ use crate::linalg::sparse::RankOneSum;
 pub const BLOCK_SHARE: f64 = 0.1;
 
 /// The split, kept by the preconditioner when a nodal term is stiffer than
-/// `TwoLevelParams::split_above` times its shear.
+/// `MultilevelParams::split_above` times its shear.
 #[derive(Debug)]
 pub struct VolumetricSplit {
     /// `C` and `W` of the reference configuration.
