@@ -56,7 +56,16 @@ pub const ALLOWED: &[(&str, &[&str])] = &[
     ),
     (
         "bs-py",
-        &["bs-mesh", "bs-contact", "bs-scene", "bs-register", "bs-sweep", "bs-image", "bs-serve"],
+        &[
+            "bs-mesh",
+            "bs-contact",
+            "bs-scene",
+            "bs-register",
+            "bs-sweep",
+            "bs-image",
+            "bs-igtl",
+            "bs-serve",
+        ],
     ),
     (
         "xtask",
