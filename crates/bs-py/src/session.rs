@@ -81,8 +81,12 @@ impl Session {
                 Given::Arrays(t) => {
                     let vertices = points(py, &t.get_item(0)?, &format!("{what} points"))?;
                     let n = vertices.len();
-                    let tris = index_rows(py, &t.get_item(1)?, &[3], n, &format!("{what} triangles"))?;
-                    TriSurface::new(vertices, tris.into_iter().map(|t| [t[0], t[1], t[2]]).collect())
+                    let tris =
+                        index_rows(py, &t.get_item(1)?, &[3], n, &format!("{what} triangles"))?;
+                    TriSurface::new(
+                        vertices,
+                        tris.into_iter().map(|t| [t[0], t[1], t[2]]).collect(),
+                    )
                 }
                 Given::File(path) => bs_mesh::io::read_surface(&path)
                     .map_err(|e| PyValueError::new_err(format!("{what}: {e}")))?,
@@ -100,11 +104,19 @@ impl Session {
                 ),
                 Given::File(path) => {
                     let space = s.run().prepared.scene.space;
-                    let pairs = bs_scene::measure::pairs::read_pairs(&LandmarkFiles::Pairs(path), space)
-                        .map_err(|e| PyValueError::new_err(format!("{what}: {e}")))?;
+                    let pairs =
+                        bs_scene::measure::pairs::read_pairs(&LandmarkFiles::Pairs(path), space)
+                            .map_err(|e| PyValueError::new_err(format!("{what}: {e}")))?;
                     (pairs.pre, pairs.intra)
                 }
             };
+            if pre.len() != intra.len() {
+                return Err(PyValueError::new_err(format!(
+                    "{what}: {} pre-operative and {} intra-operative points; give pairs",
+                    pre.len(),
+                    intra.len()
+                )));
+            }
             updates.push(Update::Landmarks { set, pre, intra });
         }
         for (k, v) in scans.into_iter().flat_map(|d| d.iter()) {

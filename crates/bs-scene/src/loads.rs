@@ -54,7 +54,9 @@ pub(crate) fn surface_moves(
 ) -> Result<Vec<Vector3<f64>>, SceneError> {
     let v = &surface.vertices;
     let bad_index = surface.triangles.iter().flatten().any(|&k| k >= v.len());
-    if surface.triangles.is_empty() || bad_index || v.iter().any(|p| !p.iter().all(|x| x.is_finite()))
+    if surface.triangles.is_empty()
+        || bad_index
+        || v.iter().any(|p| !p.iter().all(|x| x.is_finite()))
     {
         return Err(SceneError::Read {
             scene: sp.to_path_buf(),

@@ -145,12 +145,9 @@ fn a_failed_update_leaves_the_last_good_state() {
     let good = s.solve(&mut |_| {}).unwrap().solution.displacements;
     let message = |r: Result<bs_scene::Solved, SceneError>| r.unwrap_err().to_string();
     // A set the scene does not prescribe, a fixed one, a wrong row count, a NaN.
-    let m =
-        message(s.apply(&on("SIDE", BoundaryValues::Uniform(Vector3::zeros())), &mut |_| {}));
+    let m = message(s.apply(&on("SIDE", BoundaryValues::Uniform(Vector3::zeros())), &mut |_| {}));
     assert!(m.contains("SIDE") && m.contains("prescribed node sets are: TOP"), "{m}");
-    let m = message(
-        s.apply(&on("BOTTOM", BoundaryValues::Uniform(Vector3::zeros())), &mut |_| {}),
-    );
+    let m = message(s.apply(&on("BOTTOM", BoundaryValues::Uniform(Vector3::zeros())), &mut |_| {}));
     assert!(m.contains("BOTTOM") && m.contains("TOP"), "{m}");
     let m = message(
         s.apply(&on("TOP", BoundaryValues::PerNode(vec![Vector3::zeros(); 3])), &mut |_| {}),
@@ -220,8 +217,15 @@ fn a_surface_update_equals_the_displacement_it_measures() {
 fn landmarks_on_a_boundary_are_fitted_as_the_scenes_landmark_measurement() {
     let d = tmp("landmarks");
     let path = scene(&d, [0.0, 0.0, -1.0], "newton-krylov");
-    let pre = [(10.0, 10.0, 36.0), (30.0, 12.0, 35.0), (20.0, 30.0, 34.0), (12.0, 28.0, 30.0), (28.0, 28.0, 38.0)];
-    let pre: Vec<bs_mesh::Point3<f64>> = pre.iter().map(|&(x, y, z)| bs_mesh::Point3::new(x, y, z)).collect();
+    let pre = [
+        (10.0, 10.0, 36.0),
+        (30.0, 12.0, 35.0),
+        (20.0, 30.0, 34.0),
+        (12.0, 28.0, 30.0),
+        (28.0, 28.0, 38.0),
+    ];
+    let pre: Vec<bs_mesh::Point3<f64>> =
+        pre.iter().map(|&(x, y, z)| bs_mesh::Point3::new(x, y, z)).collect();
     let intra: Vec<_> = pre.iter().map(|p| p + Vector3::new(0.2, 0.0, -1.5 * p.z / 40.0)).collect();
     let mut csv = String::from("x,y,z,x2,y2,z2\n");
     for (a, b) in pre.iter().zip(&intra) {

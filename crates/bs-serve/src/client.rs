@@ -12,7 +12,7 @@ use bs_igtl::{FrameError, Message};
 
 use crate::measure::{Asked, Preop, asked};
 use crate::replies::{ReplyError, Wire, answer, send_error};
-use crate::server::Shared;
+use crate::shared::Shared;
 
 /// What one client keeps between its messages.
 #[derive(Debug, Default)]
@@ -36,7 +36,12 @@ pub fn serve(shared: &Shared, mut stream: TcpStream, name: &str) {
                 return;
             }
             Err(e) => {
-                let _ = error(shared, &mut stream, &mut c.wire, &format!("{e}; closing the connection"));
+                let _ = error(
+                    shared,
+                    &mut stream,
+                    &mut c.wire,
+                    &format!("{e}; closing the connection"),
+                );
                 return;
             }
         };
@@ -54,7 +59,9 @@ pub fn serve(shared: &Shared, mut stream: TcpStream, name: &str) {
         };
         c.wire.version = m.header.version;
         match one(shared, &mut stream, &mut c, &m) {
-            Ok(true) => shared.log.line(&format!("  replied in {:.2} s", started.elapsed().as_secs_f64())),
+            Ok(true) => {
+                shared.log.line(&format!("  replied in {:.2} s", started.elapsed().as_secs_f64()))
+            }
             Ok(false) => {}
             Err(()) => return,
         }
@@ -111,7 +118,8 @@ fn one(shared: &Shared, stream: &mut TcpStream, c: &mut Client, m: &Message) -> 
             Err(())
         }
         Err(ReplyError::Make(e)) => {
-            error(shared, stream, &mut c.wire, &format!("could not make the reply: {e}")).map(|_| false)
+            error(shared, stream, &mut c.wire, &format!("could not make the reply: {e}"))
+                .map(|_| false)
         }
     }
 }

@@ -19,6 +19,7 @@ pub mod measure;
 pub mod options;
 pub mod replies;
 pub mod server;
+pub mod shared;
 pub mod state;
 
 pub use log::Log;

@@ -111,7 +111,9 @@ fn boundary(offer: &Offer, preop: Option<&Preop>, m: &Message) -> Result<Asked, 
     let read = |e: bs_igtl::ContentError| format!("{what}: {e}");
     let known = matches!(
         (h.kind.as_str(), h.device.as_str()),
-        ("POLYDATA", "IntraopSurface") | ("POINT", "PreopLandmarks" | "IntraopLandmarks") | ("STRING", "Displacements")
+        ("POLYDATA", "IntraopSurface")
+            | ("POINT", "PreopLandmarks" | "IntraopLandmarks")
+            | ("STRING", "Displacements")
     );
     if !known {
         return Err(format!("{what}: not a measurement this server takes; {TAKES}"));
@@ -126,7 +128,8 @@ fn boundary(offer: &Offer, preop: Option<&Preop>, m: &Message) -> Result<Asked, 
         ("POLYDATA", "IntraopSurface") => {
             let p = m.read::<PolyData>().map_err(read)?;
             let s = surface(offer, &p, &what)?;
-            let line = format!("  {what}: {} points, {} triangles", s.vertices.len(), s.triangles.len());
+            let line =
+                format!("  {what}: {} points, {} triangles", s.vertices.len(), s.triangles.len());
             let values = BoundaryValues::Surface(s);
             Ok(Asked::Update(vec![Update::Boundary { set, values }], line))
         }
@@ -151,7 +154,10 @@ fn boundary(offer: &Offer, preop: Option<&Preop>, m: &Message) -> Result<Asked, 
             let (pre, intra) = pair(pre, &intra, &names, &what)?;
             let line = format!("  {what}: {} landmark pairs", intra.len());
             let to = |v: &[[f64; 3]]| v.iter().map(|&q| offer.frame.to_scene(q)).collect();
-            Ok(Asked::Update(vec![Update::Landmarks { set, pre: to(&pre), intra: to(&intra) }], line))
+            Ok(Asked::Update(
+                vec![Update::Landmarks { set, pre: to(&pre), intra: to(&intra) }],
+                line,
+            ))
         }
         _ => {
             let d = displacements_of_csv(&text(m, &what)?, &offer.set_ids, &what)?;
@@ -210,6 +216,9 @@ pub fn gravity(text: &str, what: &str) -> Result<Vector3<f64>, String> {
     }
 }
 
+/// Points in RAS mm.
+type Positions = Vec<[f64; 3]>;
+
 /// Landmark pairs: by name when both lists have the same unique non-empty names, else by
 /// order (then the counts must agree).
 pub fn pair(
@@ -217,7 +226,7 @@ pub fn pair(
     intra: &[[f64; 3]],
     names: &[String],
     what: &str,
-) -> Result<(Vec<[f64; 3]>, Vec<[f64; 3]>), String> {
+) -> Result<(Positions, Positions), String> {
     let unique = |n: &[String]| {
         let mut v: Vec<&String> = n.iter().collect();
         v.sort();
@@ -227,7 +236,9 @@ pub fn pair(
     if unique(names) && unique(&pre.names) && names.len() == pre.names.len() {
         let index: HashMap<&str, usize> =
             pre.names.iter().enumerate().map(|(k, n)| (n.as_str(), k)).collect();
-        if let Some(order) = names.iter().map(|n| index.get(n.as_str()).copied()).collect::<Option<Vec<_>>>() {
+        if let Some(order) =
+            names.iter().map(|n| index.get(n.as_str()).copied()).collect::<Option<Vec<_>>>()
+        {
             return Ok((order.iter().map(|&k| pre.points[k]).collect(), intra.to_vec()));
         }
     }
@@ -244,7 +255,11 @@ pub fn pair(
 
 /// Displacements in set order from CSV rows `node_id,ux,uy,uz` (a header line first), one
 /// per node of the set.
-pub fn displacements_of_csv(text: &str, set_ids: &[u64], what: &str) -> Result<Vec<Vector3<f64>>, String> {
+pub fn displacements_of_csv(
+    text: &str,
+    set_ids: &[u64],
+    what: &str,
+) -> Result<Vec<Vector3<f64>>, String> {
     let index: HashMap<u64, usize> = set_ids.iter().enumerate().map(|(k, &i)| (i, k)).collect();
     let mut d: Vec<Option<Vector3<f64>>> = vec![None; set_ids.len()];
     for (l, line) in text.lines().enumerate().skip(1) {
@@ -252,19 +267,22 @@ pub fn displacements_of_csv(text: &str, set_ids: &[u64], what: &str) -> Result<V
         if line.is_empty() {
             continue;
         }
-        let bad = || format!("{what} line {}: expected node_id,ux,uy,uz with numbers, found '{line}'", l + 1);
+        let bad = || {
+            format!("{what} line {}: expected node_id,ux,uy,uz with numbers, found '{line}'", l + 1)
+        };
         let f: Vec<&str> = line.split(',').map(str::trim).collect();
         if f.len() != 4 {
             return Err(bad());
         }
         let node: u64 = f[0].parse().map_err(|_| bad())?;
-        let u: Vec<f64> = f[1..].iter().map(|x| x.parse::<f64>()).collect::<Result<_, _>>().map_err(|_| bad())?;
+        let u: Vec<f64> =
+            f[1..].iter().map(|x| x.parse::<f64>()).collect::<Result<_, _>>().map_err(|_| bad())?;
         if !u.iter().all(|x| x.is_finite()) {
             return Err(bad());
         }
-        let k = *index
-            .get(&node)
-            .ok_or_else(|| format!("{what} line {}: node {node} is not in the measured node set", l + 1))?;
+        let k = *index.get(&node).ok_or_else(|| {
+            format!("{what} line {}: node {node} is not in the measured node set", l + 1)
+        })?;
         d[k] = Some(Vector3::new(u[0], u[1], u[2]));
     }
     let missing: Vec<usize> = (0..d.len()).filter(|&k| d[k].is_none()).collect();
@@ -294,7 +312,8 @@ mod tests {
         let (a, b) = pair(&pre, &intra, &names, "x").unwrap();
         assert!(a.iter().zip(&b).all(|(p, q)| q[0] - p[0] == 1.0));
         let unnamed = vec![String::new(); 4];
-        let (a, _) = pair(&Preop { names: unnamed.clone(), ..pre.clone() }, &intra, &unnamed, "x").unwrap();
+        let (a, _) =
+            pair(&Preop { names: unnamed.clone(), ..pre.clone() }, &intra, &unnamed, "x").unwrap();
         assert_eq!(a, pre.points);
         let e = pair(&pre, &intra[..3], &names[..3], "x").unwrap_err();
         assert!(e.contains("3 intra-operative landmarks for 4"), "{e}");
@@ -303,8 +322,12 @@ mod tests {
     #[test]
     fn displacement_rows_in_set_order() {
         let ids = [7, 3, 9];
-        let d = displacements_of_csv("node_id,ux,uy,uz\n9,1,2,3\n7,4,5,6\n\n3,7,8,9\n", &ids, "m").unwrap();
-        assert_eq!(d, [Vector3::new(4.0, 5.0, 6.0), Vector3::new(7.0, 8.0, 9.0), Vector3::new(1.0, 2.0, 3.0)]);
+        let d = displacements_of_csv("node_id,ux,uy,uz\n9,1,2,3\n7,4,5,6\n\n3,7,8,9\n", &ids, "m")
+            .unwrap();
+        assert_eq!(
+            d,
+            [Vector3::new(4.0, 5.0, 6.0), Vector3::new(7.0, 8.0, 9.0), Vector3::new(1.0, 2.0, 3.0)]
+        );
         let e = displacements_of_csv("h\n5,0,0,0\n", &ids, "m").unwrap_err();
         assert!(e.contains("line 2: node 5 is not in the measured node set"), "{e}");
         let e = displacements_of_csv("h\n9,0,0,0\n", &ids, "m").unwrap_err();

@@ -53,7 +53,8 @@ pub fn send<M: Encode, W: Write>(
         message_id: wire.next_id,
         metadata: &[],
     };
-    let packed = bs_igtl::pack_message(message, &envelope).map_err(|e| ReplyError::Make(format!("{device}: {e}")))?;
+    let packed = bs_igtl::pack_message(message, &envelope)
+        .map_err(|e| ReplyError::Make(format!("{device}: {e}")))?;
     wire.next_id = wire.next_id.wrapping_add(1);
     packed.write_to(out).map_err(ReplyError::Gone)?;
     Ok(packed.len())
@@ -108,13 +109,16 @@ pub fn answer<W: Write>(
     let warped = bs.install(|| map.warp_with_gap(&bs.image, &bs.image.data, gap.as_deref()));
     let image_seconds = started.elapsed().as_secs_f64();
     let sent = Instant::now();
-    let image = Image::float32(dims, 1, &ijk_to_ras, RAS, &warped, buffer).map_err(|e| ReplyError::Make(e.to_string()))?;
+    let image = Image::float32(dims, 1, &ijk_to_ras, RAS, &warped, buffer)
+        .map_err(|e| ReplyError::Make(e.to_string()))?;
     send(out, wire, "WarpedImage", &image)?;
     let send_warped = sent.elapsed().as_secs_f64();
     drop(warped);
     if field {
-        let d: Vec<f32> = bs.install(|| map.field_with_gap(gap.as_deref())).into_iter().flatten().collect();
-        let image = Image::float32(dims, 3, &ijk_to_ras, RAS, &d, buffer).map_err(|e| ReplyError::Make(e.to_string()))?;
+        let d: Vec<f32> =
+            bs.install(|| map.field_with_gap(gap.as_deref())).into_iter().flatten().collect();
+        let image = Image::float32(dims, 3, &ijk_to_ras, RAS, &d, buffer)
+            .map_err(|e| ReplyError::Make(e.to_string()))?;
         send(out, wire, "DisplacementField", &image)?;
     }
     if surface {

@@ -3,7 +3,6 @@
 //! (or [`Server::stop`]) closes every connection and joins every thread; more clients than
 //! the cap are answered with an `Error` and closed.
 
-use std::collections::HashMap;
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -12,27 +11,8 @@ use std::time::Duration;
 use crate::log::Log;
 use crate::options::Options;
 use crate::replies::{Wire, send_error};
+use crate::shared::Shared;
 use crate::state::Brainshift;
-
-/// What every client thread shares.
-#[derive(Debug)]
-pub struct Shared {
-    /// The session and image.
-    pub brainshift: Brainshift,
-    /// The options.
-    pub options: Options,
-    /// The log.
-    pub log: Log,
-    stop: AtomicBool,
-    clients: Mutex<HashMap<u64, TcpStream>>,
-}
-
-impl Shared {
-    /// Whether the server is stopping.
-    pub fn stopping(&self) -> bool {
-        self.stop.load(Ordering::SeqCst)
-    }
-}
 
 /// A bound server (see the module documentation).
 #[derive(Debug)]
@@ -49,13 +29,7 @@ impl Server {
         let listener = TcpListener::bind((options.host.as_str(), options.port))
             .map_err(|e| format!("{}:{}: {e}", options.host, options.port))?;
         listener.set_nonblocking(true).map_err(|e| e.to_string())?;
-        let shared = Arc::new(Shared {
-            brainshift,
-            options: options.clone(),
-            log,
-            stop: AtomicBool::new(false),
-            clients: Mutex::new(HashMap::new()),
-        });
+        let shared = Arc::new(Shared::new(brainshift, options.clone(), log));
         Ok(Server { shared, listener, threads: Mutex::new(Vec::new()) })
     }
 
@@ -91,7 +65,7 @@ impl Server {
 
     /// Closes every connection and joins every client thread.
     pub fn stop(&self) {
-        self.shared.stop.store(true, Ordering::SeqCst);
+        self.shared.set_stopping();
         for c in self.shared.clients.lock().unwrap_or_else(|e| e.into_inner()).values() {
             let _ = c.shutdown(std::net::Shutdown::Both);
         }

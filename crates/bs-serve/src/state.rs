@@ -122,7 +122,11 @@ impl Brainshift {
                     log.line(&format!(
                         "    iteration {}: load {:.3}, error estimate {:.2e}, max displacement \
                          {:.3}, {} nodes in contact",
-                        p.step, p.load_factor, p.err, p.max_displacement, p.contact.nodes_in_contact
+                        p.step,
+                        p.load_factor,
+                        p.err,
+                        p.max_displacement,
+                        p.contact.nodes_in_contact
                     ));
                 }
             };
@@ -133,8 +137,9 @@ impl Brainshift {
             let p = &s.run().prepared;
             let u = solved.solution.displacements;
             let surface = bs_scene::output::deformed_boundary(&p.mesh, &u);
-            let result = RunResult::new(&p.path, p.mesh.clone(), u, p.scene.space.space(), p.scene.units)
-                .map_err(|e| e.to_string())?;
+            let result =
+                RunResult::new(&p.path, p.mesh.clone(), u, p.scene.space.space(), p.scene.units)
+                    .map_err(|e| e.to_string())?;
             let mut result = result.with_skull(p.skull.clone());
             result.resected = p.resection.is_some();
             Ok(Solution { result, report, surface, solve_seconds: started.elapsed().as_secs_f64() })

@@ -29,7 +29,7 @@ use crate::scene::LandmarkFiles;
 /// The noise of landmarks sent to a session on a boundary's node set (mm): a tracked
 /// pointer's or ultrasound feature's, 1 mm (design notes §10: tracking errors of 1.7–2.2 mm
 /// for surfaces, landmarks matched by hand about 1 mm).
-pub const SESSION_LANDMARK_SIGMA_MM: f64 = 1.0;
+pub(crate) const SESSION_LANDMARK_SIGMA_MM: f64 = 1.0;
 
 impl Session {
     /// The node sets of the scene's landmark measurements: the sets whose landmarks
@@ -70,7 +70,8 @@ impl Session {
     ) -> Result<Solved, SceneError> {
         let p = &self.run.prepared;
         let key = format!("update landmarks[\"{name}\"]");
-        let err = |message: String| SceneError::Read { scene: p.path.clone(), key: key.clone(), message };
+        let err =
+            |message: String| SceneError::Read { scene: p.path.clone(), key: key.clone(), message };
         if pre.len() != intra.len() || pre.is_empty() {
             return Err(err(format!(
                 "{} pre-operative and {} intra-operative landmarks: give pairs, at least one",
@@ -134,7 +135,9 @@ impl Session {
 
     /// Removes the landmark measurement a boundary's landmarks added; returns it and the
     /// composed fit it had, for [`Session::restore_boundary_fit`].
-    pub(crate) fn drop_boundary_fit(&mut self) -> Option<(Measured, Option<crate::measure::FitState>)> {
+    pub(crate) fn drop_boundary_fit(
+        &mut self,
+    ) -> Option<(Measured, Option<crate::measure::FitState>)> {
         let k = self.boundary_fit.take()?;
         let m = self.run.prepared.measurements.remove(k);
         let fit = std::mem::take(&mut self.run.composed.fit);

@@ -19,6 +19,8 @@ use crate::run::{Run, Solved};
 use crate::solve::solve_composed_from;
 use crate::verify::verify;
 
+mod apply;
+mod boundaries;
 mod gravity;
 mod history;
 mod landmarks;
@@ -29,10 +31,8 @@ mod update;
 
 use history::History;
 pub use history::{SECANT_DEVIATION, secant_ratio};
-pub use landmarks::SESSION_LANDMARK_SIGMA_MM;
-pub use sets::BoundaryValues;
 use sets::SetLoad;
-pub use update::Update;
+pub use update::{BoundaryValues, Update};
 
 /// The pre-operative state and the last good intra-operative one.
 #[derive(Debug)]

@@ -3,28 +3,16 @@
 //! distance limit ([`SetLoad`]). An update's values are then written straight into the
 //! per-node prescribed values — no copy of the scene, no second pass over its tables, no
 //! file: a uniform displacement on the components the boundary holds, one displacement per
-//! node, or each node's closest point on a surface sent in memory.
+//! node, or each node's closest point on a surface sent in memory (`boundaries.rs` finds a
+//! set by name for the session).
 
-use bs_mesh::{TriSurface, Vector3};
+use bs_mesh::Vector3;
 
-use super::Session;
+use super::update::BoundaryValues;
 use crate::SceneError;
 use crate::boundary::{Prescribed, select_nodes};
 use crate::prepare::Prepared;
 use crate::scene::Boundary;
-
-/// New values for a prescribed boundary.
-#[derive(Debug, Clone, PartialEq)]
-pub enum BoundaryValues {
-    /// The same displacement for every node of the set (mesh frame and units); only the
-    /// components the boundary prescribes may be non-zero.
-    Uniform(Vector3<f64>),
-    /// One displacement per node, in the order of [`Session::set_nodes`].
-    PerNode(Vec<Vector3<f64>>),
-    /// An intra-operative surface (mesh frame and units): each node moves to its closest
-    /// point on it.
-    Surface(TriSurface),
-}
 
 /// A `[[boundary]]` an update may give new values, resolved once.
 #[derive(Debug, Clone)]
@@ -51,8 +39,7 @@ pub(crate) fn moves(b: &Boundary) -> bool {
 
 /// Every moving `[[boundary]]` with a node set of `p`'s scene, resolved.
 pub(crate) fn resolve_sets(p: &Prepared) -> Result<Vec<SetLoad>, SceneError> {
-    let default_distance =
-        crate::scene::DEFAULT_MAX_DISTANCE_MM * 1e-3 / p.scene.units.metres();
+    let default_distance = crate::scene::DEFAULT_MAX_DISTANCE_MM * 1e-3 / p.scene.units.metres();
     let mut out = Vec::new();
     for (i, b) in p.scene.boundaries.iter().enumerate() {
         let Some(name) = b.nset.as_ref().filter(|_| moves(b)) else { continue };
@@ -69,7 +56,12 @@ pub(crate) fn resolve_sets(p: &Prepared) -> Result<Vec<SetLoad>, SceneError> {
 
 impl SetLoad {
     fn err(&self, p: &Prepared, message: String) -> SceneError {
-        SceneError::Set { scene: p.path.clone(), key: "update".into(), set: self.name.clone(), message }
+        SceneError::Set {
+            scene: p.path.clone(),
+            key: "update".into(),
+            set: self.name.clone(),
+            message,
+        }
     }
 
     /// Writes `values` into `prescribed` for this set's nodes.
@@ -141,38 +133,5 @@ impl SetLoad {
             return Err(self.err(p, format!("component {} = {x}: {why}", ["x", "y", "z"][c])));
         }
         Ok(())
-    }
-}
-
-impl Session {
-    /// The resolved boundary on node set `name`; an error listing the sets there are.
-    pub(crate) fn set_load(&self, name: &str) -> Result<&SetLoad, SceneError> {
-        self.sets.iter().find(|s| s.name == name).ok_or_else(|| {
-            let known = self.prescribed_sets();
-            SceneError::Set {
-                scene: self.run.prepared.path.clone(),
-                key: "update".into(),
-                set: name.into(),
-                message: format!(
-                    "no [[boundary]] with this nset prescribes displacements; the scene's \
-                     prescribed node sets are: {}",
-                    if known.is_empty() { "none".into() } else { known.join(", ") }
-                ),
-            }
-        })
-    }
-
-    /// The per-node prescribed values with `values` written for their sets (every other
-    /// component keeps its last value).
-    pub(crate) fn resolve(
-        &self,
-        values: &[(&str, &BoundaryValues)],
-    ) -> Result<Prescribed, SceneError> {
-        let p = &self.run.prepared;
-        let mut prescribed = p.prescribed.clone();
-        for (name, v) in values {
-            self.set_load(name)?.write(p, v, &mut prescribed)?;
-        }
-        Ok(prescribed)
     }
 }
