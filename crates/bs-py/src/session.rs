@@ -124,6 +124,18 @@ impl Session {
             let p = points(py, &v, &format!("points['{set}']"))?;
             updates.push(Update::Scan { set, points: p });
         }
+        let kinds = [
+            updates.iter().any(|u| matches!(u, Update::Boundary { .. })),
+            updates.iter().any(|u| matches!(u, Update::Landmarks { .. })),
+            updates.iter().any(|u| matches!(u, Update::Scan { .. })),
+        ];
+        if kinds.iter().filter(|&&k| k).count() > 1 {
+            return Err(PyValueError::new_err(
+                "update: give new scans (points=), new landmarks (landmarks=) or new boundary \
+                 values (displacements=, surface=) in one call, not two of them; call update \
+                 twice",
+            ));
+        }
         if let Some(g) = gravity {
             updates.push(Update::Gravity(g));
         }

@@ -52,8 +52,8 @@ def send(server, out: Path, replies: int, kind: str, device: str, *args):
 
 
 def image_of(reply):
-    """Voxels and IJK-to-RAS from the C++ library's reading: its matrix's translation is
-    the volume's centre."""
+    """Voxels and IJK-to-RAS from the C++ library's reading: unit directions, the spacing
+    apart, and the volume's centre as the matrix's translation."""
     size = [int(x) for x in reply["size"].split()]
     c = int(reply["components"])
     assert reply["scalar"] == "10" and reply["frame"] == "1"  # float32, RAS
@@ -61,8 +61,10 @@ def image_of(reply):
     v = np.fromfile(str(reply["path"]) + ".raw", dtype=dtype)
     v = v.reshape(size[2], size[1], size[0], c) if c > 1 else v.reshape(size[2], size[1], size[0])
     m = np.array([float(x) for x in reply["matrix"].split()]).reshape(4, 4)
+    spacing = np.array([float(x) for x in reply["spacing"].split()])
     affine = m.copy()
-    affine[:3, 3] = m[:3, 3] - m[:3, :3] @ ((np.array(size) - 1) / 2.0)
+    affine[:3, :3] = m[:3, :3] * spacing
+    affine[:3, 3] = m[:3, 3] - affine[:3, :3] @ ((np.array(size) - 1) / 2.0)
     return v, affine
 
 

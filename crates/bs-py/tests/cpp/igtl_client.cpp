@@ -13,12 +13,13 @@
 //                                              IntraopLandmarks (DEVICE unused)
 //
 // Per reply k (from 0): k-DEVICE.txt: its type, device, whether the CRC held, and the
-// fields (IMAGE: size, components, scalar type, endianness, frame, the 4x4 matrix as the
-// library reads it; POLYDATA: points and polygons; STRING: the text); IMAGE also writes
+// fields (IMAGE: size, components, scalar type, endianness, frame, spacing and the 4x4
+// matrix as the library reads them: unit directions and the centre; POLYDATA: points and polygons; STRING: the text); IMAGE also writes
 // k-DEVICE.raw, the voxels as the library holds them.
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <iomanip>
 #include <iostream>
 #include <sstream>
 #include <string>
@@ -107,6 +108,10 @@ static void image(std::ostream& o, const std::string& base, igtl::ImageMessage* 
   m->GetDimensions(d);
   igtl::Matrix4x4 a;
   m->GetMatrix(a);
+  float sp[3];
+  m->GetSpacing(sp);
+  o << std::setprecision(9);
+  o << "spacing " << sp[0] << " " << sp[1] << " " << sp[2] << "\n";
   o << "size " << d[0] << " " << d[1] << " " << d[2] << "\ncomponents " << m->GetNumComponents()
     << "\nscalar " << m->GetScalarType() << "\nendian " << m->GetEndian() << "\nframe "
     << m->GetCoordinateSystem() << "\nmatrix";
