@@ -78,6 +78,20 @@ pub struct Timing {
     pub extension_iterations: usize,
 }
 
+/// `values` as little-endian bytes in `buffer` (resized, not reallocated once large
+/// enough), converted in parallel pieces.
+fn le_bytes<'b>(values: &[f32], buffer: &'b mut Vec<u8>) -> &'b [u8] {
+    use rayon::prelude::*;
+    const PIECE: usize = 1 << 16;
+    buffer.resize(4 * values.len(), 0);
+    buffer.par_chunks_mut(4 * PIECE).zip(values.par_chunks(PIECE)).for_each(|(out, v)| {
+        for (o, x) in out.chunks_exact_mut(4).zip(v) {
+            o.copy_from_slice(&x.to_le_bytes());
+        }
+    });
+    buffer
+}
+
 /// The grid's size as the IMAGE header's u16 fields.
 fn size(dims: [usize; 3]) -> Result<[u16; 3], ReplyError> {
     let mut s = [0u16; 3];
@@ -109,7 +123,8 @@ pub fn answer<W: Write>(
     let warped = bs.install(|| map.warp_with_gap(&bs.image, &bs.image.data, gap.as_deref()));
     let image_seconds = started.elapsed().as_secs_f64();
     let sent = Instant::now();
-    let image = Image::float32(dims, 1, &ijk_to_ras, RAS, &warped, buffer)
+    let bytes = bs.install(|| le_bytes(&warped, buffer));
+    let image = Image::float32_le(dims, 1, &ijk_to_ras, RAS, bytes)
         .map_err(|e| ReplyError::Make(e.to_string()))?;
     send(out, wire, "WarpedImage", &image)?;
     let send_warped = sent.elapsed().as_secs_f64();
@@ -117,7 +132,8 @@ pub fn answer<W: Write>(
     if field {
         let d: Vec<f32> =
             bs.install(|| map.field_with_gap(gap.as_deref())).into_iter().flatten().collect();
-        let image = Image::float32(dims, 3, &ijk_to_ras, RAS, &d, buffer)
+        let bytes = bs.install(|| le_bytes(&d, buffer));
+        let image = Image::float32_le(dims, 3, &ijk_to_ras, RAS, bytes)
             .map_err(|e| ReplyError::Make(e.to_string()))?;
         send(out, wire, "DisplacementField", &image)?;
     }

@@ -107,16 +107,28 @@ impl<'a> Image<'a> {
         voxels: &[f32],
         buffer: &'a mut Vec<u8>,
     ) -> Result<Image<'a>, ContentError> {
-        let expected = size.iter().map(|&n| n as usize).product::<usize>() * components as usize;
-        if voxels.len() != expected {
-            return Err(ContentError::Pack(format!(
-                "{} values for {size:?} voxels of {components} components",
-                voxels.len()
-            )));
-        }
         buffer.clear();
         buffer.reserve(4 * voxels.len());
         buffer.extend(voxels.iter().flat_map(|v| v.to_le_bytes()));
+        Image::float32_le(size, components, ijk_to_world, frame, buffer)
+    }
+
+    /// [`Image::float32`] of voxels already written as little-endian float32 bytes
+    /// (`bytes`, borrowed: a caller may convert them in parallel).
+    pub fn float32_le(
+        size: [u16; 3],
+        components: u8,
+        ijk_to_world: &[[f64; 4]; 4],
+        frame: u8,
+        bytes: &'a [u8],
+    ) -> Result<Image<'a>, ContentError> {
+        let expected = size.iter().map(|&n| n as usize).product::<usize>() * components as usize;
+        if bytes.len() != 4 * expected {
+            return Err(ContentError::Pack(format!(
+                "{} bytes for {size:?} voxels of {components} float32 components",
+                bytes.len()
+            )));
+        }
         let mut image = Image {
             components,
             scalar: Scalar::Float32,
@@ -126,7 +138,7 @@ impl<'a> Image<'a> {
             matrix: [0.0; 12],
             sub_offset: [0; 3],
             sub_size: size,
-            data: Cow::Borrowed(buffer.as_slice()),
+            data: Cow::Borrowed(bytes),
         };
         image.set_ijk_to_world(ijk_to_world);
         Ok(image)
