@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # CI for the Python bindings (crates/bs-py): a venv with maturin, pytest, numpy,
-# dask[distributed], meshio 5.3.5 and nibabel 5.3.2 (the mesh and image outputs read as users read them), pyigtl 0.3.4 (the OpenIGTLink client that drives `brainshift serve`); the `brainshift` wheel built (release) and installed with the README's
+# dask[distributed], meshio 5.3.5 and nibabel 5.3.2 (the mesh and image outputs read as users read them), pyigtl 0.3.4 (an OpenIGTLink client that drives the native server; the C++ library's is built here too); the `brainshift` wheel built (release) and installed with the README's
 # one command (`pip install ./crates/bs-py`); the CLI for the comparisons; the
 # pytest suite (bit-identity with the CLI, errors, Dask sweeps, Slurm tasks by hand); and,
 # where the Slurm daemons can run (root, Debian's slurm-wlm), a real one-node Slurm
@@ -27,6 +27,18 @@ if [ -z "${BRAINSHIFT_BIN:-}" ]; then
   echo "== brainshift CLI"
   cargo build -p bs-cli
   export BRAINSHIFT_BIN=$target/debug/brainshift
+fi
+
+# The reference C++ OpenIGTLink client of test_cpp_client.py (Debian's libopenigtlink-dev,
+# installed by .ci/run); required under CI, skipped by the tests elsewhere without it.
+if [ -f /usr/include/openigtlink/igtlClientSocket.h ]; then
+  echo "== OpenIGTLink C++ client (crates/bs-py/tests/cpp)"
+  g++ -O1 -o "$target/igtl_client" crates/bs-py/tests/cpp/igtl_client.cpp \
+    -I/usr/include/openigtlink -lOpenIGTLink
+  export BRAINSHIFT_IGTL_CLIENT=$target/igtl_client
+elif [ "${CI:-}" = true ]; then
+  echo "libopenigtlink-dev is not installed (.ci/run installs it)" >&2
+  exit 1
 fi
 
 echo "== pip install ./crates/bs-py"

@@ -13,7 +13,7 @@ use std::fmt::Write as _;
 use std::time::Instant;
 
 use bs_mesh::{Point3, Vector3};
-use bs_scene::{BoundaryLoad, Prepared, Session};
+use bs_scene::{BoundaryValues, Prepared, Session, Update};
 
 use bs_study::util::{replace_block, root};
 
@@ -70,7 +70,13 @@ pub fn main() -> Result<(), String> {
         let per_node = base.iter().map(|u| u + dz).collect();
         let t = Instant::now();
         imposed
-            .update(&[("CRANIOTOMY".into(), BoundaryLoad::PerNode(per_node))], &mut |_| {})
+            .apply(
+                &[Update::Boundary {
+                    set: "CRANIOTOMY".into(),
+                    values: BoundaryValues::PerNode(per_node),
+                }],
+                &mut |_| {},
+            )
             .map_err(|e| e.to_string())?;
         wi.push(t.elapsed().as_secs_f64());
         let deeper: Vec<Point3<f64>> = scan.iter().map(|p| p + dz).collect();

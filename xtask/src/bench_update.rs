@@ -12,12 +12,13 @@ use std::time::Instant;
 
 use bs_mesh::Vector3;
 use bs_register::registration::{InverseMap, RunResult};
-use bs_scene::{BoundaryLoad, Prepared, Session, Solved};
+use bs_scene::{BoundaryValues, Prepared, Session, Solved, Update};
 
 use crate::page::{Page, say};
 
-fn craniotomy(d: f64) -> Vec<(String, BoundaryLoad)> {
-    vec![("CRANIOTOMY".into(), BoundaryLoad::Uniform(Vector3::new(0.0, 0.0, -d)))]
+fn craniotomy(d: f64) -> Vec<Update> {
+    let values = BoundaryValues::Uniform(Vector3::new(0.0, 0.0, -d));
+    vec![Update::Boundary { set: "CRANIOTOMY".into(), values }]
 }
 
 fn row(label: &str, s: &Solved) -> String {
@@ -86,9 +87,9 @@ pub fn main(args: &[String]) -> Result<(), String> {
     let mut warm_times = Vec::new();
     for k in 1..=8 {
         let d = k as f64;
-        let w = warm.update(&craniotomy(d), &mut |_| {}).map_err(e)?;
+        let w = warm.apply(&craniotomy(d), &mut |_| {}).map_err(e)?;
         cold.reset();
-        let c = cold.update(&craniotomy(d), &mut |_| {}).map_err(e)?;
+        let c = cold.apply(&craniotomy(d), &mut |_| {}).map_err(e)?;
         let diff = max_diff(&w.solution.displacements, &c.solution.displacements);
         let (wu, cu) = (&w.solution.displacements, &c.solution.displacements);
         let worst = (0..wu.len())

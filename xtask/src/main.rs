@@ -12,9 +12,9 @@
 //!   template with the demo result, against reading the image and a naive per-voxel loop.
 //! * `bench update`: a live session's warm-started updates of the MNI152 craniotomy at
 //!   1..8 mm against cold solves of the same loads, and the warped T1 after each.
-//! * `bench serve`: `brainshift serve` over OpenIGTLink: eight surface measurements (and
-//!   eight displacement sets) of the MNI152 craniotomy, the time from the last byte sent to
-//!   the warped image received (the Python package's client script).
+//! * `bench serve`: `brainshift serve` over OpenIGTLink, server and client in this process:
+//!   a scan of fixtures/fit (its last byte → the WarpedImage's, against the solve and warp
+//!   inside the server) and eight displacement sets of the MNI152 craniotomy.
 //! * `bench e2e`: every contact fixture solved by DR and by Newton–Krylov in child
 //!   processes: preparation and solve times, iterations, accuracy against CalculiX, peak
 //!   memory, speed-up (table in `docs/benchmarks.md`).
@@ -76,10 +76,10 @@ Commands:
   bench update    [--scene S] the MNI152 craniotomy measured at 1..8 mm: eight updates of a live session,
                   each warm from the last, against cold solves of the same loads; the warped
                   T1 after each; peak memory (release)
-  bench serve     `brainshift serve` over OpenIGTLink (loopback): eight surface measurements
-                  of the MNI152 craniotomy (1..8 mm) and eight displacement sets; last byte
-                  sent -> warped image received, every reply verified (Python client script;
-                  needs the brainshift package and pyigtl: BRAINSHIFT_PYTHON or target/py-venv)
+  bench serve     `brainshift serve` over OpenIGTLink (loopback, server and client in one
+                  process): a scan of fixtures/fit sent three times and eight displacement
+                  sets of the MNI152 craniotomy (1..8 mm); last byte sent -> warped image
+                  received, against the solve and warp in the server (release)
   bench mesh      meshing a labelmap at 4 mm (MNI152 mask and an MNI-sized ellipsoid), 1 and 2
                   threads (release)
   ghost           the warped MNI152 T1 where the demo's brain moved away (the ghost of the old

@@ -209,13 +209,12 @@ enum Command {
     ///
     /// Serves brain-shift updates over OpenIGTLink (3D Slicer's OpenIGTLinkIF, PLUS,
     /// navigation systems): prepares a live session of SCENE and reads IMAGE once, then
-    /// answers each measurement (POLYDATA IntraopSurface, POINT PreopLandmarks +
-    /// IntraopLandmarks, or STRING Displacements) with IMAGE WarpedImage, IMAGE
-    /// DisplacementField, POLYDATA DeformedBrain and STRING Report; errors as STRING Error.
-    /// Geometry on the wire: RAS, mm. Runs the Python package's server (`python3 -m
-    /// brainshift.serve`; BRAINSHIFT_PYTHON names another interpreter), which needs `pip
-    /// install ./crates/bs-py pyigtl`.
-    Serve(serve::ServeOptions),
+    /// answers each measurement (POINT/POLYDATA IntraopPoints, POLYDATA IntraopSurface,
+    /// POINT PreopLandmarks + IntraopLandmarks, STRING Displacements, Gravity or Resect)
+    /// with IMAGE WarpedImage, IMAGE DisplacementField, POLYDATA DeformedBrain and STRING
+    /// Report; errors as STRING Error. Geometry on the wire: RAS, mm. docs/operating-room.md
+    /// has the messages.
+    Serve(bs_serve::Options),
     /// Parameter sweeps: plan, run, collect, emit a Slurm job.
     ///
     /// Parameter sweeps: plan one scene per row from a sweep file, run rows (anywhere, in

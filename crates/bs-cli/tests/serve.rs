@@ -1,62 +1,33 @@
-//! `brainshift serve` starts the Python package's OpenIGTLink server; the server itself is
-//! tested from Python (crates/bs-py/tests/test_serve.py, driven by pyigtl). Here: the
-//! arguments it forwards, and the errors when no interpreter can run it.
+//! `brainshift serve` is the native server of bs-serve: nothing but the binary. Here: what
+//! it refuses before listening, each error naming the fix. The server itself is tested by
+//! bs-serve's tests (its own clients) and crates/bs-py/tests/test_serve.py (pyigtl and the
+//! C++ library's client driving this binary).
 
+use std::path::Path;
 use std::process::Command;
 
-use bs_cli::serve::ServeOptions;
-
-fn options() -> ServeOptions {
-    ServeOptions {
-        scene: "fixtures/mni152/scene.toml".into(),
-        image: "fixtures/mni152/t1.nii.gz".into(),
-        host: "127.0.0.1".into(),
-        port: 18944,
-        set: Some("CRANIOTOMY".into()),
-        threads: Some(2),
-        no_field: true,
-        no_surface: true,
-        max_message_mb: 64.0,
-        stall_seconds: 30.0,
-        max_clients: 16,
-        verbose: true,
-    }
+fn fixtures() -> &'static Path {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures"))
 }
 
-#[test]
-fn the_options_are_forwarded_to_the_python_server() {
-    let a = options().args();
-    let expected = "-m brainshift.serve fixtures/mni152/scene.toml --image fixtures/mni152/t1.nii.gz \
-                    --host 127.0.0.1 --port 18944 --max-message-mb 64 --stall-seconds 30 \
-                    --max-clients 16 --set CRANIOTOMY --threads 2 --no-field --no-surface --verbose";
-    assert_eq!(a.join(" "), expected);
-}
-
-fn serve_with(python: &str) -> std::process::Output {
+fn serve(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_brainshift"))
-        .args(["serve", "scene.toml", "--image", "t1.nii.gz"])
-        .env("BRAINSHIFT_PYTHON", python)
+        .arg("serve")
+        .args(args)
+        .args(["--port", "0"])
         .output()
         .expect("run brainshift")
 }
 
 #[test]
-fn a_missing_interpreter_is_named_with_the_fix() {
-    let o = serve_with("/nonexistent/python3");
-    assert!(!o.status.success());
+fn a_missing_image_or_a_set_the_scene_does_not_prescribe_is_refused_before_listening() {
+    let scene = fixtures().join("ellipsoid/scene.toml");
+    let image = fixtures().join("registration/preop.nii.gz");
+    let o = serve(&[scene.to_str().unwrap(), "--image", "/nonexistent/none.nii.gz"]);
     let e = String::from_utf8_lossy(&o.stderr);
-    assert!(e.contains("'/nonexistent/python3' cannot be started"), "{e}");
-    assert!(e.contains("BRAINSHIFT_PYTHON"), "{e}");
-}
-
-#[test]
-fn an_interpreter_without_the_package_says_how_to_install_it() {
-    // `false` runs and fails like an interpreter that cannot import brainshift.serve.
-    let o = serve_with("false");
-    assert!(!o.status.success());
+    assert!(!o.status.success() && e.contains("none.nii.gz"), "{e}");
+    let o = serve(&[scene.to_str().unwrap(), "--image", image.to_str().unwrap(), "--set", "FIXED"]);
     let e = String::from_utf8_lossy(&o.stderr);
-    assert!(
-        e.contains("cannot import it") && e.contains("pip install ./crates/bs-py pyigtl"),
-        "{e}"
-    );
+    assert!(!o.status.success() && e.contains("--set FIXED") && e.contains("CRANIOTOMY"), "{e}");
+    assert!(!String::from_utf8_lossy(&o.stdout).contains("listening on"));
 }

@@ -16,6 +16,7 @@ mod igtl;
 mod image;
 mod result;
 mod scene;
+mod serve;
 mod session;
 mod sweeps;
 
@@ -39,6 +40,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<image::InverseMap>()?;
     m.add_function(wrap_pyfunction!(image::read_image, m)?)?;
     m.add_function(wrap_pyfunction!(igtl::crc64, m)?)?;
+    m.add_function(wrap_pyfunction!(serve::serve, m)?)?;
     m.add_function(wrap_pyfunction!(functions::read_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(functions::gap, m)?)?;
     m.add_function(wrap_pyfunction!(sweeps::sweep_plan, m)?)?;

@@ -5,12 +5,12 @@
 
 use std::path::PathBuf;
 use std::sync::Mutex;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use bs_mesh::{Point3, TriSurface, Vector3};
 use bs_scene::output::RunContext;
-use bs_scene::{BoundaryLoad, SceneError};
+use bs_scene::scene::LandmarkFiles;
+use bs_scene::{BoundaryValues, SceneError, Update};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
@@ -23,146 +23,123 @@ use crate::scene::Scene;
 /// boundaries (keyed by node set) and solves from the last good state.
 #[pyclass(module = "brainshift", frozen)]
 pub(crate) struct Session {
-    inner: Mutex<bs_scene::Session>,
+    pub(crate) inner: Mutex<bs_scene::Session>,
     threads: Option<usize>,
-    /// Temporary files of array-given surfaces and landmarks.
-    scratch: PathBuf,
 }
 
-/// A unique scratch folder per session.
-fn scratch_dir() -> PathBuf {
-    static NEXT: AtomicU64 = AtomicU64::new(0);
-    let k = NEXT.fetch_add(1, Ordering::Relaxed);
-    std::env::temp_dir().join(format!("brainshift-session-{}-{k}", std::process::id()))
+/// `v` as a pair of arrays, or a file path.
+enum Given<'a, 'py> {
+    Arrays(&'a Bound<'py, PyTuple>),
+    File(PathBuf),
 }
 
-/// `v` as a file path, or a pair of arrays that `write` puts in a scratch file.
-fn path_or_arrays(
-    v: &Bound<'_, PyAny>,
-    what: &str,
-    write: impl FnOnce(&Bound<'_, PyTuple>) -> PyResult<PathBuf>,
-) -> PyResult<PathBuf> {
+fn given<'a, 'py>(v: &'a Bound<'py, PyAny>, what: &str) -> PyResult<Given<'a, 'py>> {
     match v.cast::<PyTuple>() {
-        Ok(t) if t.len() == 2 => write(t),
-        _ => v.extract::<PathBuf>().map_err(|_| {
+        Ok(t) if t.len() == 2 => Ok(Given::Arrays(t)),
+        _ => v.extract::<PathBuf>().map(Given::File).map_err(|_| {
             PyValueError::new_err(format!("{what} must be a file path or a pair of arrays"))
         }),
     }
 }
 
+fn points(py: Python<'_>, v: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<Point3<f64>>> {
+    Ok(f64_rows(py, v, 3, what)?.into_iter().map(Point3::from).collect())
+}
+
 impl Session {
-    /// The boundary loads of one `update` call.
-    fn loads(
+    /// The updates of one `update` call.
+    #[allow(clippy::too_many_arguments)]
+    fn asked(
         &self,
         py: Python<'_>,
         displacements: Option<&Bound<'_, PyDict>>,
         surface: Option<&Bound<'_, PyDict>>,
         landmarks: Option<&Bound<'_, PyDict>>,
-    ) -> PyResult<Vec<(String, BoundaryLoad)>> {
-        let mut out = Vec::new();
+        scans: Option<&Bound<'_, PyDict>>,
+        gravity: Option<[f64; 3]>,
+    ) -> PyResult<Vec<Update>> {
+        let mut updates = Vec::new();
         let key = |k: Bound<'_, PyAny>, what: &str| -> PyResult<String> {
             k.extract()
                 .map_err(|_| PyValueError::new_err(format!("{what}: keys are node set names")))
         };
         for (k, v) in displacements.into_iter().flat_map(|d| d.iter()) {
-            let name = key(k, "displacements")?;
-            let load = match v.extract::<[f64; 3]>() {
-                Ok(d) => BoundaryLoad::Uniform(Vector3::from(d)),
+            let set = key(k, "displacements")?;
+            let values = match v.extract::<[f64; 3]>() {
+                Ok(d) => BoundaryValues::Uniform(Vector3::from(d)),
                 Err(_) => {
-                    let rows = f64_rows(py, &v, 3, &format!("displacements['{name}']"))?;
-                    BoundaryLoad::PerNode(rows.into_iter().map(Vector3::from).collect())
+                    let rows = f64_rows(py, &v, 3, &format!("displacements['{set}']"))?;
+                    BoundaryValues::PerNode(rows.into_iter().map(Vector3::from).collect())
                 }
             };
-            out.push((name, load));
+            updates.push(Update::Boundary { set, values });
         }
         for (k, v) in surface.into_iter().flat_map(|d| d.iter()) {
-            let name = key(k, "surface")?;
-            let path = path_or_arrays(&v, &format!("surface['{name}']"), |t| {
-                self.write_surface(py, &name, t)
-            })?;
-            out.push((name, BoundaryLoad::Surface(path)));
+            let set = key(k, "surface")?;
+            let what = format!("surface['{set}']");
+            let s = match given(&v, &what)? {
+                Given::Arrays(t) => {
+                    let vertices = points(py, &t.get_item(0)?, &format!("{what} points"))?;
+                    let n = vertices.len();
+                    let tris =
+                        index_rows(py, &t.get_item(1)?, &[3], n, &format!("{what} triangles"))?;
+                    TriSurface::new(
+                        vertices,
+                        tris.into_iter().map(|t| [t[0], t[1], t[2]]).collect(),
+                    )
+                }
+                Given::File(path) => bs_mesh::io::read_surface(&path)
+                    .map_err(|e| PyValueError::new_err(format!("{what}: {e}")))?,
+            };
+            updates.push(Update::Boundary { set, values: BoundaryValues::Surface(s) });
         }
+        let s = self.inner.lock().unwrap_or_else(|e| e.into_inner());
         for (k, v) in landmarks.into_iter().flat_map(|d| d.iter()) {
-            let name = key(k, "landmarks")?;
-            let path = path_or_arrays(&v, &format!("landmarks['{name}']"), |t| {
-                self.write_landmarks(py, &name, t)
-            })?;
-            out.push((name, BoundaryLoad::Landmarks(path)));
+            let set = key(k, "landmarks")?;
+            let what = format!("landmarks['{set}']");
+            let (pre, intra) = match given(&v, &what)? {
+                Given::Arrays(t) => (
+                    points(py, &t.get_item(0)?, &format!("{what} pre"))?,
+                    points(py, &t.get_item(1)?, &format!("{what} intra"))?,
+                ),
+                Given::File(path) => {
+                    let space = s.run().prepared.scene.space;
+                    let pairs =
+                        bs_scene::measure::pairs::read_pairs(&LandmarkFiles::Pairs(path), space)
+                            .map_err(|e| PyValueError::new_err(format!("{what}: {e}")))?;
+                    (pairs.pre, pairs.intra)
+                }
+            };
+            if pre.len() != intra.len() {
+                return Err(PyValueError::new_err(format!(
+                    "{what}: {} pre-operative and {} intra-operative points; give pairs",
+                    pre.len(),
+                    intra.len()
+                )));
+            }
+            updates.push(Update::Landmarks { set, pre, intra });
         }
-        Ok(out)
-    }
-
-    /// The new scans of one `update` call: node set and points.
-    fn scans(
-        &self,
-        py: Python<'_>,
-        points: Option<&Bound<'_, PyDict>>,
-    ) -> PyResult<Vec<(String, Vec<Point3<f64>>)>> {
-        let mut out = Vec::new();
-        for (k, v) in points.into_iter().flat_map(|d| d.iter()) {
-            let name: String = k
-                .extract()
-                .map_err(|_| PyValueError::new_err("points: keys are node set names"))?;
-            let rows = f64_rows(py, &v, 3, &format!("points['{name}']"))?;
-            out.push((name, rows.into_iter().map(Point3::from).collect()));
+        for (k, v) in scans.into_iter().flat_map(|d| d.iter()) {
+            let set = key(k, "points")?;
+            let p = points(py, &v, &format!("points['{set}']"))?;
+            updates.push(Update::Scan { set, points: p });
         }
-        Ok(out)
-    }
-
-    /// Writes the scratch file `file_name` with `write`; returns its path.
-    fn scratch_file(
-        &self,
-        file_name: &str,
-        write: impl FnOnce(&std::path::Path) -> std::io::Result<()>,
-    ) -> PyResult<PathBuf> {
-        let path = self.scratch.join(file_name);
-        std::fs::create_dir_all(&self.scratch).and_then(|()| write(&path)).map_err(|e| {
-            pyo3::exceptions::PyOSError::new_err(format!("{}: {e}", path.display()))
-        })?;
-        Ok(path)
-    }
-
-    /// Writes `(points, triangles)` as an OFF file in the scratch folder.
-    fn write_surface(
-        &self,
-        py: Python<'_>,
-        name: &str,
-        t: &Bound<'_, PyTuple>,
-    ) -> PyResult<PathBuf> {
-        let what = format!("surface['{name}']");
-        let points = f64_rows(py, &t.get_item(0)?, 3, &format!("{what} points"))?;
-        let n = points.len();
-        let tris = index_rows(py, &t.get_item(1)?, &[3], n, &format!("{what} triangles"))?;
-        let surface = TriSurface::new(
-            points.into_iter().map(Point3::from).collect(),
-            tris.into_iter().map(|t| [t[0], t[1], t[2]]).collect(),
-        );
-        self.scratch_file(&format!("{name}-surface.off"), |path| {
-            bs_mesh::io::write_surface(path, &surface).map_err(std::io::Error::other)
-        })
-    }
-
-    /// Writes `(pre, intra)` landmark pairs as the CSV the scene's `landmarks` key reads.
-    fn write_landmarks(
-        &self,
-        py: Python<'_>,
-        name: &str,
-        t: &Bound<'_, PyTuple>,
-    ) -> PyResult<PathBuf> {
-        let pre = f64_rows(py, &t.get_item(0)?, 3, &format!("landmarks['{name}'] pre"))?;
-        let intra = f64_rows(py, &t.get_item(1)?, 3, &format!("landmarks['{name}'] intra"))?;
-        if pre.len() != intra.len() {
-            return Err(PyValueError::new_err(format!(
-                "landmarks['{name}']: {} pre-operative and {} intra-operative points; give pairs",
-                pre.len(),
-                intra.len()
-            )));
+        let kinds = [
+            updates.iter().any(|u| matches!(u, Update::Boundary { .. })),
+            updates.iter().any(|u| matches!(u, Update::Landmarks { .. })),
+            updates.iter().any(|u| matches!(u, Update::Scan { .. })),
+        ];
+        if kinds.iter().filter(|&&k| k).count() > 1 {
+            return Err(PyValueError::new_err(
+                "update: give new scans (points=), new landmarks (landmarks=) or new boundary \
+                 values (displacements=, surface=) in one call, not two of them; call update \
+                 twice",
+            ));
         }
-        let mut text = String::from("x,y,z,x2,y2,z2\n");
-        for (a, b) in pre.iter().zip(&intra) {
-            text += &format!("{:?},{:?},{:?},{:?},{:?},{:?}\n", a[0], a[1], a[2], b[0], b[1], b[2]);
+        if let Some(g) = gravity {
+            updates.push(Update::Gravity(g));
         }
-        self.scratch_file(&format!("{name}-landmarks.csv"), |path| std::fs::write(path, text))
+        Ok(updates)
     }
 }
 
@@ -178,16 +155,19 @@ impl Session {
             .detach(|| with_threads(threads, || bs_scene::Session::new(prepared)))
             .map_err(PyValueError::new_err)?
             .map_err(|e| scene_err(py, e))?;
-        Ok(Session { inner: Mutex::new(s), threads, scratch: scratch_dir() })
+        Ok(Session { inner: Mutex::new(s), threads })
     }
 
     /// Solves new measurements warm from the last good state and verifies the result.
     /// `displacements={"SET": [dx, dy, dz]}` (uniform) or an (n, 3) array in the order of
     /// `set_nodes("SET")`; `surface={"SET": path or (points, triangles)}`;
-    /// `landmarks={"SET": csv path or (pre, intra)}`: new values of prescribed boundaries
-    /// (boundaries not named keep their last values); on the node set of a landmark
-    /// `[[measurement]]` (`landmark_sets()`), its new pairs, fitted from the reference state
-    /// with the session's preparation. `points={"SET": (m, 3) array}`: a new
+    /// new values of prescribed boundaries (boundaries not named keep their last values).
+    /// `landmarks={"SET": csv path or (pre, intra)}`: landmark pairs, fitted from the
+    /// reference state with the session's preparation — on the node set of a landmark
+    /// `[[measurement]]` (`landmark_sets()`) its new pairs; on a prescribed boundary's that
+    /// holds x, y and z, through that boundary as a cold run of the scene with the boundary
+    /// replaced by a landmark `[[measurement]]` (sigma 1 mm) fits them, until the next
+    /// boundary values. `points={"SET": (m, 3) array}`: a new
     /// scan of the `[[measurement]]` on that node set, fitted from the reference state with
     /// the session's preparation (scene frame and units, before the scene's rigid
     /// correction; `measured_sets()` lists the keys); not in the same call as boundary
@@ -207,39 +187,8 @@ impl Session {
         gravity: Option<[f64; 3]>,
         progress: Option<Py<PyAny>>,
     ) -> PyResult<RunResult> {
-        let loads = self.loads(py, displacements, surface, landmarks)?;
-        let scans = self.scans(py, points)?;
-        // Landmarks on a landmark measurement's node set are fitted; on a boundary's, imposed.
-        let measured = self.landmark_sets();
-        let (fitted, loads): (Vec<_>, Vec<_>) = loads.into_iter().partition(|(name, load)| {
-            matches!(load, BoundaryLoad::Landmarks(_)) && measured.contains(name)
-        });
-        if [!scans.is_empty(), !fitted.is_empty(), !loads.is_empty()].iter().filter(|&&x| x).count()
-            > 1
-        {
-            return Err(PyValueError::new_err(
-                "update: give new scans (points=), new landmarks of a [[measurement]] \
-                 (landmarks= on its node set) or new boundary values (displacements=, \
-                 surface=, landmarks=) in one call, not two of them; call update twice",
-            ));
-        }
-        self.solve_with(py, progress.as_ref(), |s, observe| {
-            let turned = gravity.map(|g| s.set_gravity(g)).transpose()?;
-            let solved = if !scans.is_empty() {
-                s.update_points(&scans, observe)
-            } else if let Some((name, BoundaryLoad::Landmarks(file))) = fitted.first() {
-                let files = bs_scene::scene::LandmarkFiles::Pairs(file.clone());
-                s.update_landmarks(name, files, observe)
-            } else if loads.is_empty() {
-                s.solve(observe)
-            } else {
-                s.update(&loads, observe)
-            };
-            if let (Err(_), Some(previous)) = (&solved, turned) {
-                s.set_gravity(previous).expect("the previous direction was accepted");
-            }
-            solved
-        })
+        let updates = self.asked(py, displacements, surface, landmarks, points, gravity)?;
+        self.solve_with(py, progress.as_ref(), |s, observe| s.apply(&updates, observe))
     }
 
     /// Resects the region whose element set is `region` (its elements leave the model; the
@@ -310,12 +259,6 @@ impl Session {
             s.run().prepared.path.display(),
             s.displacements().len()
         )
-    }
-}
-
-impl Drop for Session {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.scratch);
     }
 }
 

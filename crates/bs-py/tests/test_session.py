@@ -118,8 +118,8 @@ def test_a_new_scan_is_fitted_warm(fixtures):
 def test_new_landmarks_of_a_measurement_are_fitted_as_the_cli_fits_them(fixtures, cli, tmp_path):
     """A landmark [[measurement]] on the cube's top (ZMAX, fitted through it): new pairs
     given to update(landmarks=...) on that node set are fitted from the reference state with
-    the session's preparation, as `brainshift run` fits a scene holding those pairs; on a
-    boundary's node set, landmarks stay imposed (the other tests)."""
+    the session's preparation, as `brainshift run` fits a scene holding those pairs (on a
+    boundary's node set they are fitted through it: test_serve's landmark test)."""
     rng = np.random.default_rng(7)
     pre = 0.2 + 0.6 * rng.random((10, 3))
     first = pre + np.outer(pre[:, 2], [0.0, 0.0, -0.05])

@@ -11,7 +11,8 @@ use bs_mesh::Mesh;
 use crate::SceneError;
 use crate::scene::Scene;
 
-/// Per node: fixed (`Some(0.0)`) or prescribed final displacement per component.
+/// Per node and component: the final displacement it is held at (`Some`; a fixed component
+/// is held at 0, the same constraint), or free (`None`).
 pub type Prescribed = Vec<[Option<f64>; 3]>;
 
 /// Resolves every `[[boundary]]` of `scene` on `mesh`.

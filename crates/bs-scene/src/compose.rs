@@ -206,7 +206,6 @@ pub fn loads_of(
     for (n, comps) in prescribed.iter().enumerate() {
         for (c, v) in comps.iter().enumerate() {
             let result = match v {
-                Some(v) if *v == 0.0 => loads.fix(n, c),
                 Some(v) => loads.prescribe(n, c, *v),
                 None => Ok(()),
             };

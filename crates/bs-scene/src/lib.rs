@@ -66,4 +66,4 @@ pub use error::SceneError;
 pub use prepare::Prepared;
 pub use run::{Run, Solved};
 pub use scene::Scene;
-pub use session::{BoundaryLoad, Session};
+pub use session::{BoundaryValues, Session, Update};

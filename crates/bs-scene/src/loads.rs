@@ -1,6 +1,6 @@
 //! Loads from intra-operative data, alternatives to a typed displacement in `[[boundary]]`:
-//! an intra-operative surface (each selected node moves to its closest point on it, by
-//! bs-contact's exact point–triangle projection) and landmark pairs (the selected nodes move
+//! an intra-operative surface (each selected node moves to its closest point on it, found
+//! through bs-contact's bucket grid of the surface's triangles, `Patch`) and landmark pairs (the selected nodes move
 //! by bs-mesh's thin-plate spline of the landmark displacements). Both are in the mesh's
 //! frame and units. Nodes too far from the data are errors listing them, never silently
 //! extrapolated.
@@ -8,7 +8,7 @@
 use std::path::Path;
 
 use bs_mesh::tps::ThinPlateSpline;
-use bs_mesh::{Mesh, Point3, Vector3};
+use bs_mesh::{Mesh, Point3, TriSurface, Vector3};
 
 use crate::SceneError;
 
@@ -36,40 +36,57 @@ pub(crate) fn surface_displacements(
         key: key.clone(),
         message: e.to_string(),
     })?;
+    let label = file.display().to_string();
+    surface_moves(sp, key, &label, &surface, mesh, nodes, max_distance)
+}
+
+/// The displacement of each of `nodes` to its closest point on `surface` (in memory;
+/// `label` names it in messages), found through bs-contact's bucket grid of its
+/// triangles ([`bs_contact::Patch`]): exact, ties to the lowest triangle.
+pub(crate) fn surface_moves(
+    sp: &Path,
+    key: String,
+    label: &str,
+    surface: &TriSurface,
+    mesh: &Mesh,
+    nodes: &[usize],
+    max_distance: f64,
+) -> Result<Vec<Vector3<f64>>, SceneError> {
     let v = &surface.vertices;
-    if surface.triangles.is_empty() || v.iter().any(|p| !p.iter().all(|x| x.is_finite())) {
+    let bad_index = surface.triangles.iter().flatten().any(|&k| k >= v.len());
+    if surface.triangles.is_empty()
+        || bad_index
+        || v.iter().any(|p| !p.iter().all(|x| x.is_finite()))
+    {
         return Err(SceneError::Read {
             scene: sp.to_path_buf(),
             key,
             message: format!(
-                "{}: the surface has no triangles or a non-finite vertex",
-                file.display()
+                "{label}: the surface has no triangles, a triangle naming a missing vertex, or a \
+                 non-finite vertex"
             ),
         });
     }
+    let triangles = surface.triangles.iter().map(|t| t.map(|k| k as u32)).collect();
+    let patch = bs_contact::Patch::new(v.clone(), triangles);
     let mut moves = Vec::with_capacity(nodes.len());
     let mut far = Vec::new();
     for &n in nodes {
         let p = mesh.nodes[n];
-        let mut best = (f64::INFINITY, p);
-        for t in &surface.triangles {
-            let (q, _) =
-                bs_contact::geometry::closest_point_triangle(&p, &v[t[0]], &v[t[1]], &v[t[2]]);
-            let d2 = (q - p).norm_squared();
-            if d2 < best.0 {
-                best = (d2, q);
-            }
+        let Some(q) = patch.closest(&p, f64::INFINITY) else {
+            far.push((mesh.node_ids[n], f64::INFINITY));
+            moves.push(Vector3::zeros());
+            continue;
+        };
+        if q.distance > max_distance {
+            far.push((mesh.node_ids[n], q.distance));
         }
-        let d = best.0.sqrt();
-        if d > max_distance {
-            far.push((mesh.node_ids[n], d));
-        }
-        moves.push(best.1 - p);
+        moves.push(q.point - p);
     }
     too_far(
         sp,
         key,
-        file,
+        label,
         nodes.len(),
         far,
         &format!("are farther than max_distance = {max_distance} from the surface"),
@@ -158,7 +175,7 @@ pub(crate) fn landmark_displacements(
     too_far(
         sp,
         key,
-        file,
+        &file.display().to_string(),
         nodes.len(),
         far,
         &format!(
@@ -175,7 +192,7 @@ pub(crate) fn landmark_displacements(
 fn too_far(
     sp: &Path,
     key: String,
-    file: &Path,
+    file: &str,
     selected: usize,
     mut far: Vec<(u64, f64)>,
     what: &str,
@@ -188,7 +205,7 @@ fn too_far(
     Err(SceneError::Set {
         scene: sp.to_path_buf(),
         key,
-        set: file.display().to_string(),
+        set: file.to_string(),
         message: format!(
             "{} of {selected} selected nodes {what}: {} (distance, mesh units); {fix}",
             far.len(),

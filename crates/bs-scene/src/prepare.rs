@@ -24,7 +24,8 @@ pub struct Prepared {
     pub element: ElementChoice,
     /// Region index of every element.
     pub region_of_element: Vec<usize>,
-    /// Per node: fixed (`Some(0.0)`) or prescribed final displacement per component.
+    /// Per node and component: the final displacement it is held at, or free (see
+    /// [`crate::boundary::Prescribed`]).
     pub prescribed: Vec<[Option<f64>; 3]>,
     /// The skull, if the scene has contact.
     pub skull: Option<TriSurface>,

@@ -10,7 +10,7 @@
 use std::path::{Path, PathBuf};
 
 use bs_mesh::Vector3;
-use bs_scene::{BoundaryLoad, Prepared, Run, SceneError, Session};
+use bs_scene::{BoundaryValues, Prepared, Run, SceneError, Session, Update};
 
 const TOL: f64 = 1e-5;
 
@@ -53,8 +53,12 @@ fn max_diff(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
     a.iter().zip(b).map(|(x, y)| (x - y).amax()).fold(0.0, f64::max)
 }
 
-fn top(v: [f64; 3]) -> Vec<(String, BoundaryLoad)> {
-    vec![("TOP".to_string(), BoundaryLoad::Uniform(Vector3::from(v)))]
+fn on(set: &str, values: BoundaryValues) -> Vec<Update> {
+    vec![Update::Boundary { set: set.into(), values }]
+}
+
+fn top(v: [f64; 3]) -> Vec<Update> {
+    on("TOP", BoundaryValues::Uniform(Vector3::from(v)))
 }
 
 #[test]
@@ -69,13 +73,13 @@ fn updates_in_any_order_equal_cold_runs_and_return_to_zero() {
     // Then measurements in a jumbled order, each warm from the last: larger, sheared,
     // smaller, back.
     for v in [[0.0, 0.0, -6.0], [1.5, -1.0, -4.0], [0.0, 0.0, -1.0], [0.0, 0.0, -6.0]] {
-        let warm = s.update(&top(v), &mut |_| {}).unwrap();
+        let warm = s.apply(&top(v), &mut |_| {}).unwrap();
         let diff = max_diff(&warm.solution.displacements, &cold(&d, v));
         assert!(diff < TOL, "TOP at {v:?}: warm vs cold {diff:e} mm");
         assert_eq!(s.displacements(), warm.solution.displacements.as_slice());
     }
     // Zero load: the reference state exactly (closed form), within the tolerance.
-    let zero = s.update(&top([0.0; 3]), &mut |_| {}).unwrap();
+    let zero = s.apply(&top([0.0; 3]), &mut |_| {}).unwrap();
     let largest = zero.solution.displacements.iter().map(|u| u.amax()).fold(0.0, f64::max);
     assert!(largest < TOL, "back to zero: {largest:e} mm");
 }
@@ -83,7 +87,7 @@ fn updates_in_any_order_equal_cold_runs_and_return_to_zero() {
 /// The first Newton correction of an update (its error estimate after the first step).
 fn first_correction(s: &mut Session, v: [f64; 3]) -> (f64, Vec<Vector3<f64>>) {
     let mut first = None;
-    let solved = s.update(&top(v), &mut |p| {
+    let solved = s.apply(&top(v), &mut |p| {
         first.get_or_insert(p.err);
     });
     (first.unwrap(), solved.unwrap().solution.displacements)
@@ -121,14 +125,14 @@ fn a_per_node_update_in_set_order_equals_the_uniform_one() {
     let nodes = s.set_nodes("TOP").unwrap();
     assert_eq!(nodes.len(), 49, "the 7×7 top nodes");
     let v = Vector3::new(0.0, 0.5, -3.0);
-    let per_node = vec![("TOP".to_string(), BoundaryLoad::PerNode(vec![v; nodes.len()]))];
-    let a = s.update(&per_node, &mut |_| {}).unwrap().solution.displacements;
+    let per_node = on("TOP", BoundaryValues::PerNode(vec![v; nodes.len()]));
+    let a = s.apply(&per_node, &mut |_| {}).unwrap().solution.displacements;
     for &n in &nodes {
         assert_eq!(a[n], v, "node {n} carries its prescribed value exactly");
     }
     s.reset();
     assert!(s.displacements().iter().all(|u| *u == Vector3::zeros()));
-    let b = s.update(&top([0.0, 0.5, -3.0]), &mut |_| {}).unwrap().solution.displacements;
+    let b = s.apply(&top([0.0, 0.5, -3.0]), &mut |_| {}).unwrap().solution.displacements;
     assert!(max_diff(&a, &b) < TOL);
 }
 
@@ -141,31 +145,28 @@ fn a_failed_update_leaves_the_last_good_state() {
     let good = s.solve(&mut |_| {}).unwrap().solution.displacements;
     let message = |r: Result<bs_scene::Solved, SceneError>| r.unwrap_err().to_string();
     // A set the scene does not prescribe, a fixed one, a wrong row count, a NaN.
-    let m =
-        message(s.update(&[("SIDE".into(), BoundaryLoad::Uniform(Vector3::zeros()))], &mut |_| {}));
+    let m = message(s.apply(&on("SIDE", BoundaryValues::Uniform(Vector3::zeros())), &mut |_| {}));
     assert!(m.contains("SIDE") && m.contains("prescribed node sets are: TOP"), "{m}");
-    let m = message(
-        s.update(&[("BOTTOM".into(), BoundaryLoad::Uniform(Vector3::zeros()))], &mut |_| {}),
-    );
+    let m = message(s.apply(&on("BOTTOM", BoundaryValues::Uniform(Vector3::zeros())), &mut |_| {}));
     assert!(m.contains("BOTTOM") && m.contains("TOP"), "{m}");
     let m = message(
-        s.update(&[("TOP".into(), BoundaryLoad::PerNode(vec![Vector3::zeros(); 3]))], &mut |_| {}),
+        s.apply(&on("TOP", BoundaryValues::PerNode(vec![Vector3::zeros(); 3])), &mut |_| {}),
     );
     assert!(m.contains("3 displacements for 49 nodes"), "{m}");
-    let m = message(s.update(&top([f64::NAN, 0.0, -1.0]), &mut |_| {}));
+    let m = message(s.apply(&top([f64::NAN, 0.0, -1.0]), &mut |_| {}));
     assert!(m.contains("finite"), "{m}");
-    // A measured surface that cannot be read: named with the scene's boundary number.
-    let missing = vec![("TOP".to_string(), BoundaryLoad::Surface(d.join("missing.stl")))];
-    let m = message(s.update(&missing, &mut |_| {}));
-    assert!(m.contains("[[boundary]] #2 surface") && m.contains("missing.stl"), "{m}");
+    // A measured surface without triangles: named with the scene's boundary number.
+    let empty = bs_mesh::TriSurface::new(vec![bs_mesh::Point3::origin()], Vec::new());
+    let m = message(s.apply(&on("TOP", BoundaryValues::Surface(empty)), &mut |_| {}));
+    assert!(m.contains("[[boundary]] #2 surface") && m.contains("no triangles"), "{m}");
     // A load no solver carries: the top pushed 45 mm through a 40 mm box.
-    let m = message(s.update(&top([0.0, 0.0, -45.0]), &mut |_| {}));
+    let m = message(s.apply(&top([0.0, 0.0, -45.0]), &mut |_| {}));
     assert!(m.contains("neither solver took the load"), "{m}");
     // The fraction reached is of the change asked (from -2 to -45 mm), not of the 45 mm.
     assert!(m.contains("of 43"), "{m}");
     // The session is where it was, and the next update starts from there.
     assert_eq!(s.displacements(), good.as_slice());
-    let next = s.update(&top([0.0, 0.0, -3.0]), &mut |_| {}).unwrap();
+    let next = s.apply(&top([0.0, 0.0, -3.0]), &mut |_| {}).unwrap();
     assert!(max_diff(&next.solution.displacements, &cold(&d, [0.0, 0.0, -3.0])) < TOL);
 }
 
@@ -174,7 +175,7 @@ fn dynamic_relaxation_updates_warm_too() {
     let d = tmp("dr");
     let mut s = Session::new(Prepared::load(&scene(&d, [0.0, 0.0, -2.0], "dr")).unwrap()).unwrap();
     s.solve(&mut |_| {}).unwrap();
-    let warm = s.update(&top([0.0, 0.0, -3.0]), &mut |_| {}).unwrap();
+    let warm = s.apply(&top([0.0, 0.0, -3.0]), &mut |_| {}).unwrap();
     // DR stops on its own error estimate (1e-6 mm relative to the load, as the scene asks):
     // against Newton–Krylov's cold answer, ten times the tolerance as above, times the
     // load, is generous for both.
@@ -182,12 +183,11 @@ fn dynamic_relaxation_updates_warm_too() {
     assert!(diff < 1e-3, "DR warm vs NK cold: {diff:e} mm");
 }
 
-/// A flat intra-operative surface 3 mm below the top face, and landmark pairs all moved
-/// (0, 0, −3): both put every TOP node at (0, 0, −3) exactly (the closest point on a plane
-/// below a flat face is straight down; the thin-plate spline of a constant displacement is
-/// that constant), so either update equals the uniform one.
+/// A flat intra-operative surface 3 mm below the top face puts every TOP node at
+/// (0, 0, −3) exactly (the closest point on a plane below a flat face is straight down), so
+/// the update equals the uniform one.
 #[test]
-fn surface_and_landmark_updates_equal_the_displacement_they_measure() {
+fn a_surface_update_equals_the_displacement_it_measures() {
     let d = tmp("measured");
     let surface = bs_mesh::TriSurface::new(
         vec![
@@ -198,38 +198,66 @@ fn surface_and_landmark_updates_equal_the_displacement_they_measure() {
         ],
         vec![[0, 1, 2], [0, 2, 3]],
     );
-    bs_mesh::io::write_surface(&d.join("intraop.off"), &surface).unwrap();
-    let mut pairs = String::from("x,y,z,x2,y2,z2\n");
-    for (x, y, z) in [
-        (0.0, 0.0, 40.0),
-        (40.0, 0.0, 40.0),
-        (0.0, 40.0, 40.0),
-        (40.0, 40.0, 40.0),
-        (20.0, 20.0, 20.0),
-    ] {
-        pairs += &format!("{x},{y},{z},{x},{y},{}\n", z - 3.0);
-    }
-    std::fs::write(d.join("pairs.csv"), pairs).unwrap();
     let mut s =
         Session::new(Prepared::load(&scene(&d, [0.0, 0.0, -1.0], "newton-krylov")).unwrap())
             .unwrap();
     s.solve(&mut |_| {}).unwrap();
-    let uniform = s.update(&top([0.0, 0.0, -3.0]), &mut |_| {}).unwrap().solution.displacements;
-    for load in
-        [BoundaryLoad::Surface(d.join("intraop.off")), BoundaryLoad::Landmarks(d.join("pairs.csv"))]
-    {
-        s.reset();
-        let measured = s.update(&[("TOP".into(), load.clone())], &mut |_| {}).unwrap();
-        let diff = max_diff(&measured.solution.displacements, &uniform);
-        assert!(diff < TOL, "{load:?}: {diff:e} mm from the uniform update");
+    let uniform = s.apply(&top([0.0, 0.0, -3.0]), &mut |_| {}).unwrap().solution.displacements;
+    s.reset();
+    let measured = s.apply(&on("TOP", BoundaryValues::Surface(surface)), &mut |_| {}).unwrap();
+    let diff = max_diff(&measured.solution.displacements, &uniform);
+    assert!(diff < TOL, "{diff:e} mm from the uniform update");
+}
+
+/// Landmark pairs sent on a prescribed boundary's set are fitted through it, not imposed:
+/// the answer is a cold run of the scene with that `[[boundary]]` replaced by a
+/// `[[measurement]]` of the same pairs (sigma 1 mm); a later update of boundary values
+/// goes back to imposing them.
+#[test]
+fn landmarks_on_a_boundary_are_fitted_as_the_scenes_landmark_measurement() {
+    let d = tmp("landmarks");
+    let path = scene(&d, [0.0, 0.0, -1.0], "newton-krylov");
+    let pre = [
+        (10.0, 10.0, 36.0),
+        (30.0, 12.0, 35.0),
+        (20.0, 30.0, 34.0),
+        (12.0, 28.0, 30.0),
+        (28.0, 28.0, 38.0),
+    ];
+    let pre: Vec<bs_mesh::Point3<f64>> =
+        pre.iter().map(|&(x, y, z)| bs_mesh::Point3::new(x, y, z)).collect();
+    let intra: Vec<_> = pre.iter().map(|p| p + Vector3::new(0.2, 0.0, -1.5 * p.z / 40.0)).collect();
+    let mut csv = String::from("x,y,z,x2,y2,z2\n");
+    for (a, b) in pre.iter().zip(&intra) {
+        csv += &format!("{:?},{:?},{:?},{:?},{:?},{:?}\n", a.x, a.y, a.z, b.x, b.y, b.z);
     }
+    std::fs::write(d.join("pairs.csv"), csv).unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    let fitted = text.replace(
+        "[[boundary]]\nnset = \"TOP\"\ndisplacement = { x = 0, y = 0, z = -1 }\n",
+        "[[measurement]]\nnset = \"TOP\"\nlandmarks = \"pairs.csv\"\nsigma = 1.0\n",
+    );
+    assert_ne!(fitted, text, "the TOP boundary replaced");
+    std::fs::write(d.join("fitted.toml"), fitted).unwrap();
+    let mut cold_run = Run::prepare(Prepared::load(&d.join("fitted.toml")).unwrap()).unwrap();
+    let expected = cold_run.solve(&mut |_| {}).unwrap().solution.displacements;
+
+    let mut s = Session::new(Prepared::load(&path).unwrap()).unwrap();
+    s.solve(&mut |_| {}).unwrap();
+    let update = [Update::Landmarks { set: "TOP".into(), pre: pre.clone(), intra }];
+    let got = s.apply(&update, &mut |_| {}).unwrap();
+    let diff = max_diff(&got.solution.displacements, &expected);
+    assert!(diff < TOL, "{diff:e} mm from the cold fit");
+    // Back to imposed boundary values: the cold answer of that load.
+    let back = s.apply(&top([0.0, 0.0, -3.0]), &mut |_| {}).unwrap();
+    assert!(max_diff(&back.solution.displacements, &cold(&d, [0.0, 0.0, -3.0])) < TOL);
 }
 
 /// The nodes in contact after the first Newton iteration of an update and at its end.
 fn contact_first_and_last(s: &mut Session, set: &str, v: [f64; 3]) -> (usize, usize) {
     let (mut first, mut last) = (None, 0);
-    let load = [(set.to_string(), BoundaryLoad::Uniform(Vector3::from(v)))];
-    s.update(&load, &mut |p| {
+    let load = on(set, BoundaryValues::Uniform(Vector3::from(v)));
+    s.apply(&load, &mut |p| {
         first.get_or_insert(p.contact.nodes_in_contact);
         last = p.contact.nodes_in_contact;
     })
@@ -267,10 +295,10 @@ fn each_update_reports_its_own_contact_time() {
     // holds 47 nodes on the skull; the same load again then costs almost nothing.
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/ellipsoid/scene.toml");
     let mut s = Session::new(Prepared::load(&scene).unwrap()).unwrap();
-    let load = [("CRANIOTOMY".to_string(), BoundaryLoad::Uniform(Vector3::new(0.0, 0.0, -6.0)))];
+    let load = on("CRANIOTOMY", BoundaryValues::Uniform(Vector3::new(0.0, 0.0, -6.0)));
     let ctx = bs_scene::output::RunContext { total_seconds: 0.0, threads: 1 };
     for k in 0..3 {
-        let solved = s.update(&load, &mut |_| {}).unwrap();
+        let solved = s.apply(&load, &mut |_| {}).unwrap();
         let r = bs_scene::output::report(s.run(), &solved, ctx);
         assert!(r.nodes_in_contact > 20, "update {k}: {} nodes in contact", r.nodes_in_contact);
         assert!(

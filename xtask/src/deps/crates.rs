@@ -11,6 +11,7 @@ use serde_json::Value;
 /// Workspace crates and the workspace crates each may depend on.
 pub const ALLOWED: &[(&str, &[&str])] = &[
     ("bs-atomic", &[]),
+    ("bs-igtl", &[]),
     ("bs-mesh", &["bs-atomic"]),
     ("bs-material", &[]),
     ("bs-image", &["bs-atomic"]),
@@ -25,6 +26,7 @@ pub const ALLOWED: &[(&str, &[&str])] = &[
     ),
     ("bs-register", &["bs-mesh", "bs-image", "bs-meshgen", "bs-scene"]),
     ("bs-sweep", &["bs-atomic", "bs-mesh", "bs-dr", "bs-scene"]),
+    ("bs-serve", &["bs-igtl", "bs-mesh", "bs-image", "bs-scene", "bs-register"]),
     (
         "bs-study",
         &[
@@ -41,9 +43,30 @@ pub const ALLOWED: &[(&str, &[&str])] = &[
     ),
     (
         "bs-cli",
-        &["bs-mesh", "bs-dr", "bs-contact", "bs-scene", "bs-register", "bs-sweep", "bs-preview"],
+        &[
+            "bs-mesh",
+            "bs-dr",
+            "bs-contact",
+            "bs-scene",
+            "bs-register",
+            "bs-sweep",
+            "bs-preview",
+            "bs-serve",
+        ],
     ),
-    ("bs-py", &["bs-mesh", "bs-contact", "bs-scene", "bs-register", "bs-sweep", "bs-image"]),
+    (
+        "bs-py",
+        &[
+            "bs-mesh",
+            "bs-contact",
+            "bs-scene",
+            "bs-register",
+            "bs-sweep",
+            "bs-image",
+            "bs-igtl",
+            "bs-serve",
+        ],
+    ),
     (
         "xtask",
         &[
@@ -57,6 +80,8 @@ pub const ALLOWED: &[(&str, &[&str])] = &[
             "bs-study",
             "bs-image",
             "bs-meshgen",
+            "bs-igtl",
+            "bs-serve",
         ],
     ),
 ];
@@ -88,6 +113,10 @@ fn rule_for(from: &str, to: &str) -> &'static str {
             "xtask drives bs-scene, as every front end does, not the binary's code"
         }
         ("bs-material", _) => "materials know no meshes, elements or solvers",
+        ("bs-igtl", _) => {
+            "bs-igtl is the wire protocol: it knows bytes, never the model (bs-serve maps \
+             messages to session updates)"
+        }
         ("bs-mesh", _) => "bs-mesh is the bottom layer and depends on no other brainshift crate",
         _ => "only bs-scene composes the layers; front ends (bs-cli, bs-py, xtask) build on it",
     }

@@ -8,42 +8,31 @@
 //! solver cannot carry, a result that fails verification) leaves the session at its last
 //! good state. Nothing here prints.
 
-use std::path::PathBuf;
-
 use bs_dr::{Progress, WarmStart};
 use bs_mesh::Vector3;
 
 use crate::SceneError;
-use crate::boundary::{Prescribed, resolve_boundaries, select_nodes};
+use crate::boundary::Prescribed;
 use crate::compose::loads_of;
 use crate::prepare::Prepared;
 use crate::run::{Run, Solved};
-use crate::scene::{Boundary, Displacement, Scene};
 use crate::solve::solve_composed_from;
 use crate::verify::verify;
 
+mod apply;
+mod boundaries;
 mod gravity;
 mod history;
 mod landmarks;
 mod points;
 mod resect;
+mod sets;
+mod update;
 
 use history::History;
 pub use history::{SECANT_DEVIATION, secant_ratio};
-
-/// A new measurement of one prescribed boundary, named by its node set.
-#[derive(Debug, Clone, PartialEq)]
-pub enum BoundaryLoad {
-    /// The same displacement for every node of the set (mesh frame and units); only the
-    /// components the boundary prescribes may be non-zero.
-    Uniform(Vector3<f64>),
-    /// One displacement per node, in the order of [`Session::set_nodes`].
-    PerNode(Vec<Vector3<f64>>),
-    /// An intra-operative surface (.stl, .obj, .off): each node moves to its closest point.
-    Surface(PathBuf),
-    /// A CSV of landmark pairs `x,y,z,x2,y2,z2`: the nodes move by their thin-plate spline.
-    Landmarks(PathBuf),
-}
+use sets::SetLoad;
+pub use update::{BoundaryValues, Update};
 
 /// The pre-operative state and the last good intra-operative one.
 #[derive(Debug)]
@@ -56,6 +45,11 @@ pub struct Session {
     warm: bool,
     /// The prescribed values `state` converged at, and the state before it.
     history: History,
+    /// The boundaries an update may give new values, resolved once.
+    sets: Vec<SetLoad>,
+    /// The index of the landmark measurement an update added on a boundary's node set
+    /// (fitted through it), removed by the next update of boundary values.
+    boundary_fit: Option<usize>,
 }
 
 impl Session {
@@ -66,7 +60,8 @@ impl Session {
         let scene_prescribed = run.prepared.prescribed.clone();
         let history = History::reference(&scene_prescribed);
         let state = vec![Vector3::zeros(); n];
-        Ok(Session { run, scene_prescribed, state, warm: false, history })
+        let sets = sets::resolve_sets(&run.prepared)?;
+        Ok(Session { run, scene_prescribed, state, warm: false, history, sets, boundary_fit: None })
     }
 
     /// The prepared scene, its composition and its solver settings.
@@ -79,12 +74,10 @@ impl Session {
         &self.state
     }
 
-    /// The nodes (indices) of the node set `name`, in the order [`BoundaryLoad::PerNode`]
-    /// takes their displacements.
+    /// The nodes (indices) of the prescribed boundary on node set `name`, in the order
+    /// [`BoundaryValues::PerNode`] takes their displacements.
     pub fn set_nodes(&self, name: &str) -> Result<Vec<usize>, SceneError> {
-        let (i, b) = self.boundary(name)?;
-        let p = &self.run.prepared;
-        select_nodes(&p.path, &p.scene, &p.mesh, i, b).map(|(_, nodes)| nodes)
+        Ok(self.set_load(name)?.nodes.clone())
     }
 
     /// Back to the reference state and the scene's own boundary values (a turned gravity
@@ -125,95 +118,37 @@ impl Session {
         Ok(Solved::new(p, c, solution, max_penetration_before, verification, seconds))
     }
 
-    /// Sets the new measurements `loads` (other prescribed boundaries keep their last
-    /// values) and solves warm from the last good state. On any error the session keeps
-    /// its last good state and loads.
-    pub fn update(
+    /// Writes new values of prescribed boundaries (other boundaries keep their last values)
+    /// and solves warm from the last good state. On any error the session keeps its last
+    /// good state and loads.
+    fn update_boundaries(
         &mut self,
-        loads: &[(String, BoundaryLoad)],
+        values: &[(&str, &BoundaryValues)],
         observer: &mut dyn FnMut(&Progress),
     ) -> Result<Solved, SceneError> {
-        let prescribed = self.resolve(loads)?;
-        let previous = self.set_loads(prescribed)?;
+        let prescribed = self.resolve(values)?;
+        let dropped = self.drop_boundary_fit();
+        let previous = match self.set_loads(prescribed) {
+            Ok(previous) => previous,
+            Err(e) => {
+                self.restore_boundary_fit(dropped);
+                return Err(e);
+            }
+        };
         match self.solve(observer) {
             Ok(solved) => Ok(solved),
             Err(e) => {
                 self.set_loads(previous).expect("the previous loads were accepted before");
+                self.restore_boundary_fit(dropped);
                 Err(e)
             }
         }
     }
 
-    /// The node sets of the scene's boundaries that prescribe displacements (the keys
-    /// [`Session::update`] takes), in scene order.
+    /// The node sets of the scene's boundaries that prescribe displacements (the keys of
+    /// [`Update::Boundary`]), in scene order.
     pub fn prescribed_sets(&self) -> Vec<&str> {
-        let p = &self.run.prepared;
-        p.scene.boundaries.iter().filter(|b| moves(b)).filter_map(|b| b.nset.as_deref()).collect()
-    }
-
-    /// The boundary whose node set is `name` and that prescribes displacements.
-    fn boundary(&self, name: &str) -> Result<(usize, &Boundary), SceneError> {
-        let p = &self.run.prepared;
-        p.scene
-            .boundaries
-            .iter()
-            .enumerate()
-            .find(|(_, b)| b.nset.as_deref() == Some(name) && moves(b))
-            .ok_or_else(|| {
-                let known = self.prescribed_sets();
-                SceneError::Set {
-                    scene: p.path.clone(),
-                    key: "update".into(),
-                    set: name.into(),
-                    message: format!(
-                        "no [[boundary]] with this nset prescribes displacements; the scene's \
-                         prescribed node sets are: {}",
-                        if known.is_empty() { "none".into() } else { known.join(", ") }
-                    ),
-                }
-            })
-    }
-
-    /// The per-node prescribed components with `loads` applied to the current ones: each
-    /// updated boundary resolved on its own (its nodes and components take the new
-    /// values), every other component keeps its last value.
-    fn resolve(&self, loads: &[(String, BoundaryLoad)]) -> Result<Prescribed, SceneError> {
-        let p = &self.run.prepared;
-        let mut prescribed = p.prescribed.clone();
-        for (name, load) in loads {
-            let (i, original) = self.boundary(name)?;
-            let cleared = Boundary {
-                displacement: None,
-                displacement_file: None,
-                surface: None,
-                landmarks: None,
-                ..original.clone()
-            };
-            let b = match load {
-                BoundaryLoad::Uniform(v) => {
-                    Boundary { displacement: Some(uniform(p, name, original, v)?), ..cleared }
-                }
-                BoundaryLoad::Surface(f) => Boundary { surface: Some(f.clone()), ..cleared },
-                BoundaryLoad::Landmarks(f) => Boundary { landmarks: Some(f.clone()), ..cleared },
-                BoundaryLoad::PerNode(_) => original.clone(),
-            };
-            let single = Scene { boundaries: vec![b], ..p.scene.clone() };
-            let mut values =
-                resolve_boundaries(&p.path, &single, &p.mesh).map_err(|e| renumber(e, i))?;
-            if let BoundaryLoad::PerNode(v) = load {
-                let (_, nodes) = select_nodes(&p.path, &single, &p.mesh, 0, &single.boundaries[0])
-                    .map_err(|e| renumber(e, i))?;
-                per_node_values(p, name, &nodes, v, &mut values)?;
-            }
-            for (now, new) in prescribed.iter_mut().zip(&values) {
-                for c in 0..3 {
-                    if new[c].is_some() {
-                        now[c] = new[c];
-                    }
-                }
-            }
-        }
-        Ok(prescribed)
+        self.sets.iter().map(|s| s.name.as_str()).collect()
     }
 
     /// Makes `prescribed` the loads of the next solve; returns the loads it replaces.
@@ -294,97 +229,4 @@ impl Session {
             }
         })
     }
-}
-
-/// Whether the boundary prescribes (possibly non-zero) displacements rather than fixing.
-fn moves(b: &Boundary) -> bool {
-    b.displacement.is_some()
-        || b.displacement_file.is_some()
-        || b.surface.is_some()
-        || b.landmarks.is_some()
-}
-
-/// An error about the one boundary of a single-boundary scene, keyed as the scene's
-/// `[[boundary]]` number `i + 1`.
-fn renumber(e: SceneError, i: usize) -> SceneError {
-    let fix = |key: String| key.replacen("[[boundary]] #1", &format!("[[boundary]] #{}", i + 1), 1);
-    match e {
-        SceneError::Read { scene, key, message } => {
-            SceneError::Read { scene, key: fix(key), message }
-        }
-        SceneError::Set { scene, key, set, message } => {
-            SceneError::Set { scene, key: fix(key), set, message }
-        }
-        e => e,
-    }
-}
-
-/// The uniform displacement `v` for the boundary `b` named `name`: its prescribed
-/// components (all three for a measured surface or landmarks).
-fn uniform(
-    p: &Prepared,
-    name: &str,
-    b: &Boundary,
-    v: &Vector3<f64>,
-) -> Result<Displacement, SceneError> {
-    let held = match &b.displacement {
-        Some(d) => d.components().map(|c| c.is_some()),
-        None => [true; 3],
-    };
-    let value = |c: usize| -> Result<Option<f64>, SceneError> {
-        let x = v[c];
-        if !x.is_finite() || (!held[c] && x != 0.0) {
-            return Err(SceneError::Set {
-                scene: p.path.clone(),
-                key: "update".into(),
-                set: name.into(),
-                message: format!(
-                    "component {} = {x}: {}",
-                    ["x", "y", "z"][c],
-                    if x.is_finite() {
-                        "the boundary leaves this component free; give 0 for it"
-                    } else {
-                        "a displacement must be a finite number"
-                    }
-                ),
-            });
-        }
-        Ok(held[c].then_some(x))
-    };
-    Ok(Displacement { x: value(0)?, y: value(1)?, z: value(2)? })
-}
-
-/// Writes one displacement per node of `nodes` into `prescribed` (the components the
-/// boundary prescribes).
-fn per_node_values(
-    p: &Prepared,
-    name: &str,
-    nodes: &[usize],
-    values: &[Vector3<f64>],
-    prescribed: &mut Prescribed,
-) -> Result<(), SceneError> {
-    let err = |message: String| SceneError::Set {
-        scene: p.path.clone(),
-        key: "update".into(),
-        set: name.into(),
-        message,
-    };
-    if values.len() != nodes.len() {
-        return Err(err(format!(
-            "{} displacements for {} nodes; give one (dx, dy, dz) per node of the set",
-            values.len(),
-            nodes.len()
-        )));
-    }
-    for (k, (&n, v)) in nodes.iter().zip(values).enumerate() {
-        if !v.iter().all(|x| x.is_finite()) {
-            return Err(err(format!("row {k} (node {}) is not finite", p.mesh.node_ids[n])));
-        }
-        for c in 0..3 {
-            if prescribed[n][c].is_some() {
-                prescribed[n][c] = Some(v[c]);
-            }
-        }
-    }
-    Ok(())
 }

@@ -29,12 +29,17 @@ impl Session {
     ) -> Result<Solved, SceneError> {
         let prepared = self.resected(region)?;
         let run = Run::prepare(prepared)?;
+        let sets = super::sets::resolve_sets(&run.prepared)?;
+        let old_sets = std::mem::replace(&mut self.sets, sets);
+        let old_fit = self.boundary_fit.take();
         let old_run = std::mem::replace(&mut self.run, run);
         let old_pattern = self.scene_prescribed.clone();
         crate::resection::hold_unused(&self.run.prepared.mesh, &mut self.scene_prescribed);
         let old_history =
             std::mem::replace(&mut self.history, History::reference(&self.scene_prescribed));
         self.solve(observer).inspect_err(|_| {
+            self.sets = old_sets;
+            self.boundary_fit = old_fit;
             self.run = old_run;
             self.scene_prescribed = old_pattern;
             self.history = old_history;
