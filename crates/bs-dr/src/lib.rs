@@ -1,6 +1,6 @@
 //! Total Lagrangian explicit dynamics (TLED) element kernels and three steady-state solvers
-//! behind one trait: the semismooth Newton–Krylov solver (the default: two-level
-//! preconditioner, kinematic contact linearised on its active set), the paper's adaptive
+//! behind one trait: the semismooth Newton–Krylov solver (the default: a multilevel
+//! preconditioner following the state, kinematic contact linearised on its active set), the paper's adaptive
 //! Dynamic Relaxation, and a static Newton–Raphson reference with a direct factorisation.
 //!
 //! Architecture invariant: this crate knows elements, materials and nodal vectors. It knows
@@ -59,7 +59,7 @@
 //!
 //! Layers, lowest first (each folder imports only the rows above it; `cargo xtask deps`
 //! checks it): [`element`] (one element's data), `kernels` (TLED forces on SIMD lanes),
-//! [`linalg`] (nodal vectors, sparse matrices, GMRES, the two-level preconditioner),
+//! [`linalg`] (nodal vectors, sparse matrices, GMRES, the multilevel preconditioner),
 //! [`assembly`] (internal forces, `K₀`, element tangents), [`model`] and `mass` (the
 //! model, its masses and time steps), then the solvers ([`dr`], [`newton`],
 //! [`newton_krylov`]) with their seams ([`contact`], [`loads`]), the common [`solver`]

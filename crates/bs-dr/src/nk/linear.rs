@@ -1,5 +1,5 @@
 //! The linearised equilibrium of one Newton iteration, `Π J Π δ = −Π (f + J u_p)`, solved by
-//! GMRES with the two-level preconditioner. `J` is applied matrix-free as a forward
+//! GMRES with the multilevel preconditioner. `J` is applied matrix-free as a forward
 //! difference of the internal forces (so every element technology is linearised exactly as
 //! its force kernel); `u_p` is the particular displacement (prescribed values still to apply
 //! and the normal moves that put held contact nodes on their features); `Π` removes fixed

@@ -1,7 +1,7 @@
 //! The linearised equilibrium in the mixed form of the nearly incompressible split
 //! ([`VolumetricSplit`]): GMRES on displacements and multipliers, the multiplier's volumetric
 //! term moved to the linearisation point, the block preconditioned by the split's own
-//! two-level cycle under the solve's constraints.
+//! multilevel cycle under the solve's constraints.
 
 use std::time::{Duration, Instant};
 

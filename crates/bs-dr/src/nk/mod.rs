@@ -1,15 +1,16 @@
-//! The fast steady-state solver: a semismooth Newton–Krylov method with the two-level
-//! preconditioner of `K₀`, the kinematic contact linearised on its active set, load
+//! The fast steady-state solver: a semismooth Newton–Krylov method with a multilevel
+//! preconditioner that follows the state, the kinematic contact linearised on its active set, load
 //! continuation and a line search that never inverts an element.
 //!
 //! Each iteration solves the linearised equilibrium with GMRES ([`linear`]), applying the
 //! Jacobian of the internal forces matrix-free (a forward difference of
 //! [`Model::internal_forces_into`], so every element technology is linearised exactly as its
-//! force kernel) and preconditioning with [`Multilevel`], which depends only on mesh,
-//! materials and fixed components and is prepared once ([`NewtonKrylov::prepare`]). Under
-//! large deformations `K₀` drifts from the tangent: after a slow linear solve with elements
-//! compressed or stretched by more than 40 %, the preconditioner is rebuilt on the current
-//! configuration for the rest of the load level, at most twice per solve ([`refresh`]).
+//! force kernel) and preconditioning with [`Multilevel`], built once on `K₀` for the mesh,
+//! materials and fixed components ([`NewtonKrylov::prepare`]). Under large deformations
+//! `K₀` drifts from the tangent: once the elements have deformed by
+//! [`NewtonKrylovParams::rebuild_strain`] since it was built, the preconditioner's numbers
+//! are made again on the stiffness of the current configuration, its coarse levels for the
+//! solve's contact set, the aggregates and patterns kept ([`refresh`]).
 //!
 //! # Contact
 //!

@@ -118,7 +118,7 @@ pub struct NewtonKrylovParams {
     /// Rebuild the preconditioner on the current configuration before a linear solve once
     /// the elements have deformed this much since it was built (the volume-weighted root
     /// mean square of `‖ΔF‖`, `Model::strain_change`; see `nk::refresh`); infinity never
-    /// rebuilds. Default 0.05.
+    /// rebuilds. Default 0.1.
     pub rebuild_strain: f64,
 }
 
@@ -137,7 +137,7 @@ impl Default for NewtonKrylovParams {
             continuation: ContinuationParams::default(),
             line_search: LineSearchParams::default(),
             preconditioner: MultilevelParams::default(),
-            rebuild_strain: 0.05,
+            rebuild_strain: 0.1,
         }
     }
 }

@@ -5,6 +5,7 @@ use nalgebra::Matrix3;
 use std::sync::Arc;
 
 use super::levels::Levels;
+use super::products::FineProducts;
 use super::projector::Projector;
 
 /// The constraints of one solve as the preconditioner sees them: the nodal projector and the
@@ -26,6 +27,9 @@ pub struct Constraints {
 #[derive(Debug, Clone)]
 pub(crate) struct Built {
     pub(super) levels: Arc<Levels>,
+    /// The mesh level's products under these constraints, kept by a preconditioner's own
+    /// levels for the local corrections of contact sets (`None` for a correction).
+    pub(super) fine: Option<Arc<FineProducts>>,
     pub(super) projector: Arc<Vec<Matrix3<f64>>>,
     pub(super) held: usize,
 }

@@ -43,7 +43,7 @@ impl Multilevel {
         let st = &self.structure;
         let held = |a: usize| pi.constrained[a] && pi.matrix[a] != fixed.matrix[a];
         let count = (0..pi.matrix.len()).into_par_iter().filter(|&a| held(a)).count();
-        let a1 = if count == 0 {
+        let products = if count == 0 {
             st.fine.galerkin_fine(k, &st.p, &st.pt)
         } else {
             let mut p = st.p.clone();
@@ -56,8 +56,14 @@ impl Multilevel {
             p.transpose_into(&st.pt_source, &mut pt);
             st.fine.galerkin_fine(k, &p, &pt)
         };
-        let levels: Levels = st.coarse.levels(a1)?;
-        Ok(Built { levels: Arc::new(levels), projector: Arc::new(pi.matrix.clone()), held: count })
+        let levels: Levels = st.coarse.levels(products.a1.clone())?;
+        let fine = self.retained.is_some().then(|| Arc::new(products));
+        Ok(Built {
+            levels: Arc::new(levels),
+            fine,
+            projector: Arc::new(pi.matrix.clone()),
+            held: count,
+        })
     }
 
     /// Keeps in `con` the coarse levels of `(Π P)ᵀ K (Π P)` for its constraints, when the
@@ -85,12 +91,17 @@ impl Multilevel {
         if stale < STALE_MIN || (reference.held > 0 && !turned) {
             return false;
         }
-        // A failed factor keeps the levels in use, and is not tried again for these
+        // A correction of the preconditioner's own levels where it kept their products;
+        // a failed factor keeps the levels in use, and is not tried again for these
         // constraints.
-        let built = self.levels_under(k, fixed, pi);
+        let built = match &self.levels.fine {
+            Some(products) => self.corrected(k, products, pi),
+            None => self.levels_under(k, fixed, pi),
+        };
         let ok = built.is_ok();
         con.levels = Some(built.unwrap_or_else(|_| Built {
             levels: reference.levels.clone(),
+            fine: None,
             projector: Arc::new(pi.matrix.clone()),
             held: held_count,
         }));

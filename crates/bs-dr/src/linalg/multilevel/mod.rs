@@ -41,6 +41,7 @@
 pub mod blocks;
 pub mod constraints;
 mod contact;
+mod correction;
 pub mod cycle;
 pub mod levels;
 pub(crate) mod operator;

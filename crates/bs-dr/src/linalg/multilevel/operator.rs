@@ -26,7 +26,7 @@ use crate::linalg::sparse::{RankOneSum, RankOneSum32, split_rows};
 const ROWS: usize = 2048;
 
 /// `K₀` fused (see the module documentation).
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub(crate) struct Operator32 {
     ptr: Vec<u32>,
     col: Vec<u32>,

@@ -30,7 +30,19 @@ pub(crate) type FineP = Blocks<f64, 3, 6>;
 pub(crate) type CoarseBlocks = Blocks<f64, 6, 6>;
 
 /// `1 × 6` rows `q_t = c_t P` of the nodal terms.
-type Row6 = SMatrix<f64, 1, 6>;
+pub(crate) type Row6 = SMatrix<f64, 1, 6>;
+
+/// The Galerkin operator of the mesh's operator and the products it was summed from, kept
+/// for the local corrections of a contact set (`super::correction`).
+#[derive(Debug, Clone)]
+pub(crate) struct FineProducts {
+    /// `Pᵀ K P`, both triangles.
+    pub(super) a1: CoarseBlocks,
+    /// `E P` (the assembled part).
+    pub(super) ep: FineP,
+    /// `C P`, unweighted, on the terms' pattern (empty without nodal terms).
+    pub(super) q: Vec<Row6>,
+}
 
 /// The pattern of a symmetric block operator with the position of every block's mirror.
 #[derive(Debug, Clone)]
@@ -161,13 +173,13 @@ impl LevelPatterns {
     }
 
     /// The Galerkin operator `Pᵀ K P` of the mesh's operator `k` (`pt` the transpose of
-    /// `p`).
+    /// `p`), with the products it was summed from.
     pub(crate) fn galerkin_fine(
         &self,
         k: &NodalMatrix,
         p: &FineP,
         pt: &Blocks<f64, 6, 3>,
-    ) -> CoarseBlocks {
+    ) -> FineProducts {
         let nc = pt.rows();
         let e = &k.assembled;
         let ep = product(&self.ap, p.rows(), nc, |a, out, pos| {
@@ -226,7 +238,12 @@ impl LevelPatterns {
             },
         );
         self.coarse.mirror_upper(&mut a);
-        a
+        FineProducts { a1: a, ep, q: q.map(|(_, q)| q).unwrap_or_default() }
+    }
+
+    /// `C P`'s pattern (one row per nodal term) and its transpose.
+    pub(crate) fn terms(&self) -> (&Pattern, &Pattern) {
+        (&self.q, &self.qt)
     }
 
     /// The Galerkin operator `Pᵀ A P` of a coarse level's operator `a`.

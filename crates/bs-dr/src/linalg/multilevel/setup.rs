@@ -115,20 +115,25 @@ impl Multilevel {
         let p = smooth(&t, &fine_times(&k, &t, nc), &inv_diag, omega);
         let pt = p.transpose(nc);
         let fine = LevelPatterns::fine(&k, &p, nc);
-        let a1 = fine.galerkin_fine(&k, &p, &pt);
+        let products = fine.galerkin_fine(&k, &p, &pt);
+        let a1 = products.a1.clone();
         let dropped = modes.iter().map(dropped_modes).collect();
         let (coarse, levels) = CoarseStructure::new(a1, agg.centroid, modes, dropped, h, &params)?;
         let (p32, pt32) = (p.to_f32(), pt.to_f32());
         let pt_source = p.transpose_map(nc);
         let structure = Arc::new(Structure { p, pt, pt_source, p32, pt32, fine, coarse });
-        let levels =
-            Built { levels: Arc::new(levels), projector: Arc::new(fixed.matrix.clone()), held: 0 };
+        let keep = params.contact_coarse && split.is_none();
+        let levels = Built {
+            levels: Arc::new(levels),
+            fine: keep.then(|| Arc::new(products)),
+            projector: Arc::new(fixed.matrix.clone()),
+            held: 0,
+        };
         let fixed = Constraints { projector: fixed.clone(), inv_diag, levels: None };
         let op32 = Operator32::new(&k);
         // The mixed form's solves use the block's preconditioner, whose coarse levels stay
         // the setup's: building them for the contact set there was measured worse (MNI152
         // at ν = 0.499: 25 Newton / 199 GMRES iterations against 16 / 162).
-        let keep = params.contact_coarse && split.is_none();
         let retained = keep.then_some(k);
         Ok(Multilevel {
             diag,

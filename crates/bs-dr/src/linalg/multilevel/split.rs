@@ -9,7 +9,7 @@
 //! whose first row, with `p = (1−α) W C u`, is `K₀ u = r` exactly, for any `α` per term and
 //! any operator in place of `K₀` (the solver's tangent `J`: the first block is then
 //! `J − Cᵀ (1−α)W C`, with `C` and `W` taken on the current configuration). A second
-//! two-level preconditioner is built for the block `E + Cᵀ αW C`, which keeps the share
+//! multilevel preconditioner is built for the block `E + Cᵀ αW C`, which keeps the share
 //! [`BLOCK_SHARE`] of the volumetric stiffness of every term stiffer than
 //! `MultilevelParams::split_above` times its shear; the rest is the multiplier `p` (an
 //! augmented Lagrangian: Fortin & Glowinski 1983; Benzi & Olshanskii, *SIAM J. Sci.
@@ -35,7 +35,7 @@ use crate::linalg::krylov::NodalMap;
 use crate::linalg::nodal::NodalMatrix;
 use crate::linalg::sparse::RankOneSum;
 
-/// The share `α` of a split term's volumetric stiffness kept in the two-level block (the rest
+/// The share `α` of a split term's volumetric stiffness kept in the preconditioned block (the rest
 /// goes to the multiplier). Measured with `brainshift run` on the MNI152 brain (8 mm): at
 /// ν = 0.499 `α` = 0.1 (a block `κ/μ` of 50) took 25 Newton / 290 GMRES iterations and 0.4
 /// (200) 17 / 288, against 30 / 1013 without the split; at ν = 0.4999, 0.1 (500)
@@ -46,7 +46,7 @@ pub const BLOCK_SHARE: f64 = 0.1;
 
 /// The split, kept by the preconditioner when a nodal term is stiffer than
 /// `MultilevelParams::split_above` times its shear.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct VolumetricSplit {
     /// `C` and `W` of the reference configuration.
     c: RankOneSum,
@@ -177,7 +177,7 @@ impl Moved<'_> {
         pack(diff, -1.0, op);
     }
 
-    /// `z = M⁻¹ r`: `p = −r_p / s`, `z_u = B (r_u − Π Cᵀ p)` with `b` applying the two-level
+    /// `z = M⁻¹ r`: `p = −r_p / s`, `z_u = B (r_u − Π Cᵀ p)` with `b` applying the multilevel
     /// cycle.
     pub fn precondition(
         &self,
