@@ -23,7 +23,13 @@
 //! fixture's). It measures how the solve grows with the mesh: its solve time and GMRES
 //! iterations as multiples of the default mesh's, same run.
 //!
-//! The table is printed and written into `docs/benchmarks.md` between its `e2e` markers.
+//! A second table runs the loads other than the push, Newton–Krylov against the demo push's
+//! solve of the same run: the MNI152 brain under gravity with the fluid drained
+//! (`scene-gravity.toml`) and hanging (`scene-hanging.toml`), the demo at ν = 0.499, and the
+//! paper's 40 mm push of the hexahedral ellipsoid by both solvers.
+//!
+//! The tables are printed and written into `docs/benchmarks.md` between their `e2e` and
+//! `e2e-loads` markers.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -43,6 +49,20 @@ const CASES: [(&str, &str, &str); 5] = [
     ("mni152 coarse", "fixtures/mni152/scene-coarse.toml", "mni152"),
     ("mni152 default", "fixtures/mni152/scene.toml", "mni152"),
     ("mni152 fine", "fixtures/mni152/scene-fine.toml", "mni152"),
+];
+
+/// The loads other than the push (see the module documentation): name, scene, solvers, and
+/// Poisson's ratio of every region when it differs from the scene's.
+const LOADS: [(&str, &str, &[&str], Option<f64>); 4] = [
+    ("mni152 gravity", "fixtures/mni152/scene-gravity.toml", &["newton-krylov"], None),
+    ("mni152 hanging", "fixtures/mni152/scene-hanging.toml", &["newton-krylov"], None),
+    ("mni152 push, nu = 0.499", "fixtures/mni152/scene.toml", &["newton-krylov"], Some(0.499)),
+    (
+        "ellipsoid hex 40 mm",
+        "fixtures/ellipsoid/scene-40mm-dr.toml",
+        &["dr", "newton-krylov"],
+        None,
+    ),
 ];
 
 /// The generated case (see the module documentation): name and element size (mm).
@@ -115,15 +135,22 @@ fn ccx_field(p: &Prepared, ccx_case: &str) -> Result<Option<Vec<Vector3<f64>>>, 
 
 /// The child: one case with one solver; prints one line of key=value pairs.
 fn run_one(case: &str, solver: &str, out: &Path) -> Result<(), String> {
+    let load = LOADS.iter().find(|l| l.0 == case);
     let (scene, ccx_case) = if case == LARGE.0 {
         (large_scene()?, None)
+    } else if let Some(l) = load {
+        (root().join(l.1), None)
     } else {
         let (_, scene, ccx) =
             CASES.iter().find(|c| c.0 == case).ok_or_else(|| format!("unknown case {case}"))?;
         (root().join(scene), Some(*ccx))
     };
     let p = Prepared::load(&scene).map_err(|e| e.to_string())?;
-    let v = Variant { solver: Some(solver_kind(solver)?), ..Variant::default() };
+    let v = Variant {
+        solver: Some(solver_kind(solver)?),
+        poisson_ratio: load.and_then(|l| l.3),
+        ..Variant::default()
+    };
     let o = v.solve(&p).map_err(|e| format!("{case} {solver}: {e}"))?;
     let reference = match ccx_case {
         Some(c) => ccx_field(&p, c)?,
@@ -275,13 +302,51 @@ pub fn main(args: &[String]) -> Result<(), String> {
         let default = rows.iter().find(|r| r.0 == "mni152 default").map(|r| &r.2);
         table.push_str(&large_row(&large, default));
     }
-    println!("\n{table}");
+    let demo = rows.iter().find(|r| r.0 == "mni152 default").map(|r| r.2.clone());
+    let loads = loads_table(only.as_deref(), demo.as_ref(), &tmp)?;
+    println!("\n{table}\n{loads}");
     if only.is_none() {
+        replace_block(&root().join("docs/benchmarks.md"), "e2e-loads", &loads)?;
         replace_block(&root().join("docs/benchmarks.md"), "e2e", &table)?;
         println!("wrote docs/benchmarks.md");
     }
     let _ = std::fs::remove_dir_all(&tmp);
     Ok(())
+}
+
+/// The loads other than the push ([`LOADS`]), each solve as a multiple of the demo push's
+/// Newton–Krylov solve of the same run (`demo`), the hexahedral case's Newton–Krylov against
+/// its Dynamic Relaxation.
+fn loads_table(only: Option<&str>, demo: Option<&Run>, tmp: &Path) -> Result<String, String> {
+    let mut s = String::from(
+        "| load | nodes / elements | solver | Newton its / DR steps | GMRES its | force evals | solve s | × the demo push | × DR |\n\
+         |---|---|---|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for (case, _, solvers, _) in LOADS {
+        if only.is_some_and(|o| o != case) {
+            continue;
+        }
+        let mut dr: Option<Run> = None;
+        for solver in solvers {
+            let out = tmp.join(format!("{}-{solver}.csv", case.replace([' ', ','], "_")));
+            let r = spawn(case, solver, &out)?;
+            println!(
+                "  {case:<24} {solver:<14} solve {:>8.3} s  {:>5} iterations",
+                r.solve, r.iterations
+            );
+            let vs_demo = demo.map_or_else(|| "—".into(), |d| format!("{:.2}×", r.solve / d.solve));
+            let vs_dr =
+                dr.as_ref().map_or_else(|| "—".into(), |d| format!("{:.2}×", r.solve / d.solve));
+            s.push_str(&format!(
+                "| {case} | {} / {} | {solver} | {} | {} | {} | {:.3} | {vs_demo} | {vs_dr} |\n",
+                r.nodes, r.elements, r.iterations, r.linear, r.forces, r.solve
+            ));
+            if *solver == "dr" {
+                dr = Some(r);
+            }
+        }
+    }
+    Ok(s)
 }
 
 /// The row of [`LARGE`] (Newton–Krylov only), with its solve time and GMRES iterations as

@@ -145,7 +145,94 @@ pub fn run() -> Result<(), String> {
         return Ok(());
     }
     dr_against_newton(&mut page, &t4_mesh)?;
+    preconditioners(&mut page)?;
     page.write("cargo xtask bench solver")
+}
+
+/// Two levels against the multilevel hierarchy on the MNI152 demo and, when `bench e2e`
+/// has meshed it, the 852k-tet brain (`bs_study::precond`); then both in whole solves.
+fn preconditioners(page: &mut Page) -> Result<(), String> {
+    let bandwidth = bs_study::precond::stream_bandwidth();
+    say!(
+        page,
+        "\nPreconditioner: K0 x = b to 1e-8 (GMRES, restart 40), one cycle (best of 5 x 10); \
+         memory bandwidth (triad, 3 x 32 MiB, 2 threads) {:.1} GB/s",
+        bandwidth / 1e9
+    );
+    say!(
+        page,
+        "{:<16} {:>7} {:<22} {:>7} {:>6} {:>9} {:>9} {:>8} {:>7}",
+        "mesh",
+        "nodes",
+        "levels (coarse unknowns)",
+        "setup s",
+        "GMRES",
+        "ms/cycle",
+        "MB/cycle",
+        "GB/s",
+        "floor"
+    );
+    let root = bs_study::util::root();
+    let mut scenes = vec![("mni152 demo", root.join("fixtures/mni152/scene.toml"))];
+    let large = root.join("target/bench-e2e/mni152-size3/scene.toml");
+    if large.exists() {
+        scenes.push(("mni152 852k", large));
+    }
+    for (name, scene) in &scenes {
+        for levels in [2, bs_dr::MultilevelParams::default().max_levels] {
+            let c = bs_study::precond::measure(scene, levels)?;
+            let achieved = c.bytes as f64 / c.seconds;
+            say!(
+                page,
+                "{:<16} {:>7} {:<22} {:>7.2} {:>6} {:>9.2} {:>9.1} {:>8.1} {:>6.2}x",
+                name,
+                c.nodes,
+                format!("{levels}: {:?}", c.levels),
+                c.setup,
+                c.gmres,
+                c.seconds * 1e3,
+                c.bytes as f64 / 1e6,
+                achieved / 1e9,
+                bandwidth / achieved
+            );
+        }
+    }
+    say!(page, "floor: the cycle's time against its bytes moved at the measured bandwidth");
+    say!(page, "\nWhole Newton-Krylov solves, two levels against the default hierarchy:");
+    say!(
+        page,
+        "{:<26} {:>7} {:>8} {:>6} {:>8} | {:>7} {:>8} {:>6} {:>8}",
+        "scene",
+        "levels",
+        "Newton",
+        "GMRES",
+        "solve s",
+        "levels",
+        "Newton",
+        "GMRES",
+        "solve s"
+    );
+    let mut solves = vec![
+        ("mni152 demo", root.join("fixtures/mni152/scene.toml")),
+        ("mni152 gravity", root.join("fixtures/mni152/scene-gravity.toml")),
+    ];
+    if scenes.len() > 1 {
+        solves.push(scenes[1].clone());
+    }
+    for (name, scene) in &solves {
+        let p = bs_scene::Prepared::load(scene).map_err(|e| e.to_string())?;
+        let mut cells = Vec::new();
+        for levels in [2, bs_dr::MultilevelParams::default().max_levels] {
+            let v = bs_study::study::Variant { max_levels: Some(levels), ..Default::default() };
+            let o = v.solve(&p).map_err(|e| format!("{name}: {e}"))?;
+            cells.push(format!(
+                "{levels:>7} {:>8} {:>6} {:>8.3}",
+                o.steps, o.linear_iterations, o.solve_seconds
+            ));
+        }
+        say!(page, "{:<26} {} | {}", name, cells[0], cells[1]);
+    }
+    Ok(())
 }
 
 /// DR against Newton on the 10 648-node T4 cube, top pushed down 20 %.

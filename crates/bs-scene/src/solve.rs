@@ -31,6 +31,9 @@ pub struct SolveSettings {
     /// solve takes 13 Newton / 51 GMRES iterations with it, 14 / 78 without, for about
     /// 28 MB more memory (docs/benchmarks.md).
     pub contact_coarse: bool,
+    /// Newton–Krylov's preconditioner levels at most (`bs_dr::MultilevelParams::max_levels`;
+    /// its default when `None`, 2 the two-level method).
+    pub max_levels: Option<usize>,
 }
 
 impl SolveSettings {
@@ -44,6 +47,7 @@ impl SolveSettings {
             ramp_steps: p.scene.solver.ramp_steps,
             forcing_max: None,
             contact_coarse: true,
+            max_levels: None,
         }
     }
 }
@@ -63,6 +67,7 @@ fn newton_krylov(s: &SolveSettings) -> NewtonKrylov {
         forcing_min: s.forcing_max.map_or(defaults.forcing_min, |f| defaults.forcing_min.min(f)),
         preconditioner: MultilevelParams {
             contact_coarse: s.contact_coarse,
+            max_levels: s.max_levels.unwrap_or(defaults.preconditioner.max_levels),
             ..defaults.preconditioner
         },
         ..defaults

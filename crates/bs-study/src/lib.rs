@@ -22,6 +22,7 @@ pub mod chart;
 pub mod fit;
 pub mod ghost;
 pub mod plot;
+pub mod precond;
 pub mod reference;
 pub mod stability;
 pub mod study;

@@ -51,6 +51,8 @@ pub struct Variant {
     pub ramp_steps: Option<usize>,
     /// Newton–Krylov's largest linear-solve relative residual.
     pub forcing_max: Option<f64>,
+    /// Newton–Krylov's preconditioner levels at most (2: the two-level method).
+    pub max_levels: Option<usize>,
 }
 
 /// Why a variant produced no result.
@@ -211,6 +213,7 @@ impl Variant {
             settings.max_steps = self.max_steps;
         }
         settings.forcing_max = self.forcing_max;
+        settings.max_levels = self.max_levels;
         prepare_solver(&mut c, &settings).map_err(Failure::Solve)?;
         let prepare_seconds = started.elapsed().as_secs_f64();
         let solving = Instant::now();

@@ -206,6 +206,7 @@ impl NewtonKrylovParams {
         let t = &self.preconditioner;
         param("aggregate_size", t.aggregate_size, t.aggregate_size > 0.0, "must be > 0")?;
         at_least_one("degree", t.degree)?;
+        at_least_one("coarse_degree", t.coarse_degree)?;
         open_unit("lower", t.lower)?;
         Ok(())
     }

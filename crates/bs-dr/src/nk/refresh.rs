@@ -74,11 +74,11 @@ impl<'a> Following<'a> {
         let reference = model.reference();
         self.positions.clear();
         self.positions.extend(reference.iter().zip(u).map(|(p, d)| p + d));
+        let base = self.base;
         let k = self.k.get_or_insert_with(|| {
-            self.base.operator().cloned().unwrap_or_else(|| model.linear_stiffness())
+            base.operator().cloned().unwrap_or_else(|| model.linear_stiffness())
         });
-        let okk = model.stiffness_at_into(&self.positions, k, &mut self.scratch);
-        let built = okk
+        let built = model.stiffness_at_into(&self.positions, k, &mut self.scratch)
             && match self.base.rebuilt(k, fixed, current) {
                 Ok(tl) => {
                     self.rebuilt = Some(tl);

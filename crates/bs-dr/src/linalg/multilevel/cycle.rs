@@ -74,6 +74,34 @@ impl Multilevel {
         }
     }
 
+    /// Bytes one [`apply`](Self::apply) moves, counted from the sizes of what it reads and
+    /// writes (each pass once; what stays in cache between passes counted again): on the
+    /// mesh `2 (degree − 1) + 2` operator products and the Chebyshev updates (five nodal
+    /// vectors each), the restriction and prolongation (the single-precision blocks, 4
+    /// bytes of index each), on every smoothed coarse level the same with its 6 × 6 blocks,
+    /// and the coarsest factor read twice (forward and back substitution). A lower bound
+    /// of the memory traffic, for the distance to the machine's bandwidth.
+    pub fn bytes_per_cycle(&self) -> usize {
+        let st = &self.structure;
+        let d = self.params.degree.max(1);
+        let products = 2 * (d - 1) + 2;
+        let dc = self.params.coarse_degree.max(1);
+        let coarse_products = 2 * (dc - 1) + 2;
+        let n = st.p32.rows();
+        let fine = products * self.op32.bytes() + 2 * d * 5 * 24 * n;
+        let transfer = |blocks: usize, block: usize| blocks * (block + 4);
+        let mut bytes = fine + transfer(st.p32.len(), 72) + transfer(st.pt32.len(), 72);
+        let levels = &self.levels.levels;
+        for (level, link) in levels.smoothed.iter().zip(&st.coarse.links) {
+            let m = level.a32.rows();
+            bytes += coarse_products * transfer(level.a32.len(), 144)
+                + 2 * dc * 5 * 48 * m
+                + transfer(link.p32.len(), 144)
+                + transfer(link.pt32.len(), 144);
+        }
+        bytes + 2 * 8 * levels.factor.len()
+    }
+
     /// `f(a, (Π K x)_a)` for every node `a` (single-precision operator; `x` in the range
     /// of `Π`).
     fn op_with(
@@ -177,7 +205,7 @@ impl Multilevel {
         let [b, x, r, d, t] = here;
         x.iter_mut().for_each(|v| *v = V6::zeros());
         r.copy_from_slice(b);
-        let degree = self.params.degree;
+        let degree = self.params.coarse_degree;
         chebyshev6(level, self.params.lower, degree, r, x, d, t);
         residual6(&level.a32, b, x, r);
         let (next, rest) = below.split_first_mut().expect("the level below");

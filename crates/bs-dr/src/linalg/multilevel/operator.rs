@@ -115,6 +115,21 @@ impl Operator32 {
         Operator32 { ptr, col, rows, proj, weight, extra }
     }
 
+    /// Bytes one [`apply_with`](Self::apply_with) reads and writes: the slots of both
+    /// passes, the offsets, the nodal weights, `x̂` written and read once per node and
+    /// gathered once per slot (from cache: counted once), the output (the extra terms
+    /// left out: a few per cent of the nodes).
+    pub(crate) fn bytes(&self) -> usize {
+        let n = self.ptr.len() - 1;
+        let slots = self.col.len();
+        let matrix = slots * (std::mem::size_of::<[[f32; 4]; 3]>() + 4)
+            + self.proj.len() * std::mem::size_of::<[f32; 4]>()
+            + self.weight.len() * 8
+            + (n + 1) * 4;
+        // x read, x̂ written and read, the output written.
+        matrix + n * (24 + 32 + 32 + 24)
+    }
+
     /// Scratch buffers for [`apply_with`](Self::apply_with).
     pub(crate) fn scratch(&self) -> OperatorScratch {
         OperatorScratch {

@@ -14,9 +14,14 @@ pub struct MultilevelParams {
     /// Levels at most, the mesh included: 2 is the two-level method (the first coarse level
     /// solved exactly, whatever its size). Default 8.
     pub max_levels: usize,
-    /// Degree of the Chebyshev smoother (sweeps before and after each coarse correction).
-    /// Default 3.
+    /// Degree of the mesh level's Chebyshev smoother (sweeps before and after the coarse
+    /// correction). Default 3.
     pub degree: usize,
+    /// Degree of the coarse levels' Chebyshev smoother. Their operators are small next to
+    /// the mesh's (on the 852k-tet brain level 1 moves a seventh of the mesh level's bytes
+    /// per product): measured there, 6 took 14 Newton / 159 GMRES iterations where 3 took
+    /// 18 / 193, for 7 % more bytes per cycle. Default 6.
+    pub coarse_degree: usize,
     /// Lower end of the smoothed interval as a fraction of `λ_max(D⁻¹A)`. Default 0.1.
     pub lower: f64,
     /// Keep the stiffness after the setup, so that a solve can rebuild the coarse levels
@@ -39,6 +44,7 @@ impl Default for MultilevelParams {
             coarsest: 2000,
             max_levels: 8,
             degree: 3,
+            coarse_degree: 6,
             lower: 0.1,
             contact_coarse: false,
             split_above: 100.0,
