@@ -338,7 +338,7 @@ fn transpose_pattern(p: &Pattern, columns: usize) -> Pattern {
 }
 
 /// `P = T − ω D⁻¹ (A T)`: the prolongator smoothed from the tentative `t` with `at = A T`
-/// (its pattern contains `t`'s: the diagonal blocks of `A`), `inv_diag` the inverses of
+/// (its pattern contains `t`'s, which the products add), `inv_diag` the inverses of
 /// `A`'s (projected) diagonal blocks.
 pub(crate) fn smooth<const R: usize>(
     t: &Blocks<f64, R, 6>,
@@ -386,7 +386,10 @@ pub(crate) fn fine_times(k: &NodalMatrix, t: &FineP, nc: usize) -> FineP {
         });
         (c, pattern, vals)
     });
+    // T's own entries too: a node no element holds (a resected region's) has an empty row
+    // of A, and the smoothing adds T into A T's pattern.
     let pattern = Pattern::union(t.rows(), nc, |a, add| {
+        t.row(a).0.iter().for_each(|&j| add(j));
         for &b in &e.col[e.ptr[a] as usize..e.ptr[a + 1] as usize] {
             t.row(b as usize).0.iter().for_each(|&j| add(j));
         }
@@ -419,6 +422,7 @@ pub(crate) fn fine_times(k: &NodalMatrix, t: &FineP, nc: usize) -> FineP {
 /// `A T` of a coarse operator `a` (the setup's smoothing).
 pub(crate) fn coarse_times(a: &CoarseBlocks, t: &CoarseBlocks, nc: usize) -> CoarseBlocks {
     let pattern = Pattern::union(t.rows(), nc, |r, add| {
+        t.row(r).0.iter().for_each(|&j| add(j));
         for &b in a.row(r).0 {
             t.row(b as usize).0.iter().for_each(|&j| add(j));
         }

@@ -458,3 +458,40 @@ fn a_deeper_hierarchy_is_symmetric_and_keeps_the_iterations_of_two_levels() {
     let (d, t) = (count(&deep), count(&two));
     assert!(d as f64 <= 1.3 * t as f64, "{unknowns:?}: {d} against {t} with two levels");
 }
+
+#[test]
+fn a_node_no_element_holds_leaves_the_hierarchy_and_its_iterations_alone() {
+    // A resection leaves nodes that no element holds: their rows of K are empty, yet they
+    // sit in aggregates. The hierarchy must build (it once failed on the smoothing's
+    // pattern) and, with the node fixed, solve the same system as without it.
+    let small =
+        MultilevelParams { aggregate_size: 1.5, coarsest: 60, ..MultilevelParams::default() };
+    let count = |orphan: bool| {
+        let mut mesh = box_mesh(8, 10.0, true);
+        if orphan {
+            mesh.nodes.push(bs_mesh::Point3::new(5.05, 5.05, 5.05));
+        }
+        let solid =
+            Solid { material: Material::neo_hookean(3000.0, 0.49).unwrap(), density: 1000.0 };
+        let m = Model::uniform(
+            &mesh,
+            solid,
+            ModelOptions { tet: TetFormulation::T4Anp, hourglass: 0.1 },
+        )
+        .unwrap();
+        let mut fixed = bottom_fixed(&m);
+        if orphan {
+            fixed.set(m.node_count() - 1, &[Vector3::x(), Vector3::y(), Vector3::z()]);
+        }
+        let tl = with_params(&m, &fixed, small);
+        assert!(tl.sizes().0.len() >= 2, "coarse levels {:?}", tl.sizes().0);
+        let con = tl.constraints();
+        let mut ts = tl.scratch();
+        let b = shear_load(&m, &fixed);
+        let mut prec = |r: &[Vector3<f64>], z: &mut [Vector3<f64>]| tl.apply(&con, r, z, &mut ts);
+        projected_gmres(&m, &fixed, &b, &mut prec).iterations
+    };
+    let (with, without) = (count(true), count(false));
+    // The orphan changes its aggregate's tentative modes only at its own (fixed) row.
+    assert!(with.abs_diff(without) <= 2, "{with} iterations with the orphan, {without} without");
+}
