@@ -6,8 +6,9 @@
 //! successive intra-operative changes (the scan, and the imposed craniotomy, 0.5 mm
 //! deeper each time): the imposed one solved warm from the last state, the scan fitted
 //! with the session's preparation from the reference state (bs-scene's `session/points.rs`
-//! says why); medians and their ratio. The table goes into docs/benchmarks.md between its
-//! `fit` markers.
+//! says why); medians and their ratio. Gravity: fixtures/fit-gravity's fit estimating the
+//! level and direction with its scan against the forward solve of the same scene's gravity
+//! (`scene-forward.toml`). The table goes into docs/benchmarks.md between its `fit` markers.
 
 use std::fmt::Write as _;
 use std::time::Instant;
@@ -28,7 +29,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn session(name: &str) -> Result<Session, String> {
-    let path = root().join("fixtures/fit").join(name);
+    let path = root().join("fixtures").join(name);
     let p = Prepared::load(&path).map_err(|e| e.to_string())?;
     Session::new(p).map_err(|e| e.to_string())
 }
@@ -51,8 +52,8 @@ fn truth_craniotomy(s: &Session) -> Result<Vec<Vector3<f64>>, String> {
 
 /// `cargo xtask bench fit`.
 pub fn main() -> Result<(), String> {
-    let mut imposed = session("scene-truth.toml")?;
-    let mut fit = session("scene.toml")?;
+    let mut imposed = session("fit/scene-truth.toml")?;
+    let mut fit = session("fit/scene.toml")?;
     let (mut ci, mut cf, mut cits) = (Vec::new(), Vec::new(), Vec::new());
     // Interleaved, so that the machine's load falls on both alike.
     for _ in 0..REPEATS {
@@ -111,6 +112,26 @@ pub fn main() -> Result<(), String> {
          {wf:.2} ({:.0} Newton iterations) | {:.1}× |",
         median(its),
         wf / wi
+    )
+    .unwrap();
+    // Gravity estimated with the scan against the forward solve of the same scene's gravity.
+    let mut forward = session("fit-gravity/scene-forward.toml")?;
+    let mut estimated = session("fit-gravity/scene.toml")?;
+    let (mut gf, mut ge, mut solves) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..REPEATS {
+        gf.push(cold(&mut forward)?.0);
+        estimated.reset();
+        let t = Instant::now();
+        let r = estimated.solve(&mut |_| {}).map_err(|e| e.to_string())?;
+        ge.push(t.elapsed().as_secs_f64());
+        solves.push(r.gravity.map_or(0.0, |g| g.solves as f64));
+    }
+    let (gf, ge) = (median(gf), median(ge));
+    writeln!(
+        table,
+        "| fixtures/fit-gravity: level and direction estimated with the scan, median of {REPEATS} |          {gf:.2} (the forward gravity solve) | {ge:.2} ({:.0} solves) | {:.1}× |",
+        median(solves),
+        ge / gf
     )
     .unwrap();
     writeln!(

@@ -87,7 +87,8 @@ Commands:
                   and the harmonic extension outside the brain
   fit             fixture: the measurement-fit fixture (fixtures/fit: a truth, one degraded scan);
                   study [--quick]: fits of degraded scans against the truth, imposing and no
-                  correction; writes docs/fit.md's table and chart (release)
+                  correction; writes docs/fit.md's table and chart (release); gravity [--quick]:
+                  scans of gravity-driven truths fitted with gravity known, off and estimated
   validate        [--quick] every reference case (closed forms, DR vs Newton, contact vs brute
                   force, DR + contact vs CalculiX); writes docs/validation.md (release)
   chart           [--case NAME] speed vs accuracy: mesh density, element, DR tolerance, contact

@@ -192,6 +192,7 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
                 .iter()
                 .enumerate()
                 .map(|(i, m)| measurement_line(i, m, u_unit) + "\n")
+                .chain(report.gravity.as_ref().and_then(|g| estimate_line(g, u_unit)))
                 .collect::<String>(),
             written.vtu.display(),
             written.vtk.display(),
@@ -207,6 +208,22 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
         ));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The line on gravity's estimated parameters (none without `[gravity] estimate`).
+fn estimate_line(g: &bs_scene::estimate::GravityReport, u_unit: &str) -> Option<String> {
+    if g.estimates.is_empty() {
+        return None;
+    }
+    let data = if g.data_used { "" } else { "; the data were not used" };
+    let note = g.note.as_ref().map_or(String::new(), |n| format!(" ({n})"));
+    Some(format!(
+        "gravity estimated from {} scan points in {} Gauss-Newton iterations ({} solves): {}{data}{note}\n",
+        g.inliers,
+        g.iterations,
+        g.solves,
+        g.summary(u_unit)
+    ))
 }
 
 /// One line each on the scene's gravity and resection (none without).

@@ -41,6 +41,7 @@ pub mod boundary;
 pub mod check;
 pub mod compose;
 mod error;
+pub mod estimate;
 pub mod findings;
 pub mod gap;
 pub mod gravity;

@@ -110,9 +110,11 @@ pub struct RunReport {
     /// Per `[[measurement]]`: what the fit did (points, inliers, residuals after the fit,
     /// the rigid correction, how far the data moved the model). Empty without measurements.
     pub measurements: Vec<crate::measure::MeasurementReport>,
-    /// Gravity's direction in the scene's frame (absent without `[gravity]`).
+    /// The gravity solved with (unit direction in the scene's frame, acceleration, fluid
+    /// level) and what `[gravity] estimate` estimated, each with its standard error (absent
+    /// without `[gravity]`).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub gravity: Option<[f64; 3]>,
+    pub gravity: Option<crate::estimate::GravityReport>,
     /// What a resection removed (absent without one).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub resected: Option<ResectedReport>,
@@ -214,7 +216,7 @@ pub fn report(run: &Run, s: &Solved, ctx: RunContext) -> RunReport {
         units: p.scene.units.symbol().to_string(),
         space: p.scene.space.space().name().to_string(),
         measurements: s.measurements.clone(),
-        gravity: p.scene.gravity.as_ref().map(|g| g.direction),
+        gravity: s.gravity.clone(),
         resected: p.resection.as_ref().map(|r| ResectedReport {
             regions: r.regions.clone(),
             elements: r.elements,

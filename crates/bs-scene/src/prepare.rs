@@ -133,6 +133,10 @@ impl Prepared {
             &prescribed,
             skull.as_ref(),
         )?;
+        if let Some(e) = scene.gravity.as_ref().and_then(|g| g.estimate.as_ref()) {
+            crate::estimate::check_data(e, &measurements)
+                .map_err(|message| SceneError::Scene { file: sp.clone(), message })?;
+        }
         let prescribed = crate::measure::read::control(&mesh, prescribed, &measurements);
         let mut load_notes = load_notes;
         load_notes.extend(measurements.iter().map(crate::measure::Measured::note));

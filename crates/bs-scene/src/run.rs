@@ -42,6 +42,8 @@ pub struct Solved {
     pub measurements: Vec<MeasurementReport>,
     /// Per measured point: its residual, weight and status (residuals.csv).
     pub residuals: Vec<PointRow>,
+    /// The gravity solved with and what was estimated of it (`None` without `[gravity]`).
+    pub gravity: Option<crate::estimate::GravityReport>,
 }
 
 impl Solved {
@@ -65,6 +67,10 @@ impl Solved {
             solve_seconds,
             measurements,
             residuals,
+            gravity: prepared.scene.gravity.as_ref().map(|g| crate::estimate::GravityReport {
+                data_used: composed.fit.is_some(),
+                ..crate::estimate::GravityReport::of(g)
+            }),
         }
     }
 }
@@ -85,7 +91,13 @@ impl Run {
     /// Solves and verifies; `observer` sees every step (DR) or iteration (Newton solvers).
     pub fn solve(&mut self, observer: &mut dyn FnMut(&Progress)) -> Result<Solved, SceneError> {
         let started = Instant::now();
-        let (solution, max_penetration_before) = if crate::inverse::has_landmarks(&self.prepared) {
+        let mut estimated = None;
+        let (solution, max_penetration_before) = if crate::estimate::estimates(&self.prepared) {
+            let (p, c) = (&self.prepared, &mut self.composed);
+            let (s, pen, report) = crate::estimate::solve(p, c, &self.settings, observer)?;
+            estimated = Some(report);
+            (s, pen)
+        } else if crate::inverse::has_landmarks(&self.prepared) {
             let (p, c) = (&mut self.prepared, &mut self.composed);
             let (s, pen, _) = crate::inverse::solve(p, c, &self.settings, None, observer)?;
             (s, pen)
@@ -101,6 +113,10 @@ impl Run {
         )?;
         let seconds = started.elapsed().as_secs_f64();
         let (p, c) = (&self.prepared, &self.composed);
-        Ok(Solved::new(p, c, solution, max_penetration_before, verification, seconds))
+        let mut solved = Solved::new(p, c, solution, max_penetration_before, verification, seconds);
+        if estimated.is_some() {
+            solved.gravity = estimated;
+        }
+        Ok(solved)
     }
 }

@@ -657,3 +657,127 @@ fn new_landmarks_in_a_session_fit_as_a_cold_run_of_them() {
     assert_eq!(session.displacements(), &before[..]);
     assert_eq!(session.landmark_pairs("ZMAX").unwrap().pre.len(), 12);
 }
+
+/// The confined column of `gravity_is_the_prior_a_scan_of_the_top_corrects` with a fluid
+/// below `level` and `[gravity]` extra keys `extra`, its top scanned at `scan_z`.
+fn column_scene(dir: &Path, level: f64, acceleration: f64, extra: &str, scan_z: f64) -> PathBuf {
+    let mut pts = String::from("x,y,z\n");
+    for j in 0..=40 {
+        for i in 0..=40 {
+            pts += &format!("{},{},{scan_z}\n", i - 10, j - 10);
+        }
+    }
+    std::fs::write(dir.join("scan.csv"), pts).unwrap();
+    let mesh = root().join("fixtures/column/column-t4-16.inp");
+    let text = format!(
+        "units = \"mm\"\n[mesh]\nfile = \"{}\"\nelement = \"t4anp\"\n[[region]]\nelset = \"*\"\n\
+         material = {{ model = \"neo-hookean\", youngs_modulus = 3000.0, poisson_ratio = 0.45, \
+         density = 1040.0 }}\n[[boundary]]\nnset = \"XSIDES\"\nfix = [\"x\"]\n[[boundary]]\n\
+         nset = \"YSIDES\"\nfix = [\"y\"]\n[[boundary]]\nnset = \"BASE\"\nfix = [\"z\"]\n\
+         [gravity]\ndirection = [0.0, 0.0, -1.0]\nacceleration = {acceleration:?}\n\
+         fluid = {{ density = 1007.0, level = [5.0, 5.0, {level:?}] }}\n{extra}\n\
+         [[measurement]]\npoints = \"scan.csv\"\nnset = \"TOP\"\nsigma = 0.1\n\
+         [solver]\ntolerance = 1e-8\n",
+        mesh.display()
+    );
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn the_estimated_level_and_weight_are_those_whose_closed_form_settles_the_top_onto_the_scan() {
+    use bs_material::closed_form::confined_column_displacement;
+    let dir = tmp("column-estimate");
+    let height = 80.0;
+    let law = bs_material::Material::neo_hookean(3000.0, 0.45).unwrap();
+    // Weight per reference volume (Pa/mm) of the tissue, less the fluid's below the level.
+    let top_of = |level: f64, factor: f64| {
+        let (w, wf) = (1040.0 * 9.81e-3 * factor, 1007.0 * 9.81e-3 * factor);
+        let weight = move |z: f64| if z < level { w - wf } else { w };
+        confined_column_displacement(&law, height, &weight, 0.0, &[height]).unwrap()[0]
+    };
+    // The truth: the fluid stands at z = 30 and the tissue weighs 9.81 m/s²; its top scanned.
+    let scan_z = height + top_of(30.0, 1.0);
+    // The closed form's settlement and the top's sensitivity to the level (mm per mm).
+    let settlement = -top_of(30.0, 1.0);
+    let per_mm = (top_of(31.0, 1.0) - top_of(29.0, 1.0)) / 2.0;
+    assert!(settlement > 0.5 && per_mm.abs() > 1e-3, "{settlement} {per_mm}");
+    let estimate = |level: f64, acceleration: f64, keys: &str| {
+        let path = column_scene(&dir, level, acceleration, keys, scan_z);
+        let mut run = Run::prepare(Prepared::load(&path).unwrap()).unwrap();
+        let solved = run.solve(&mut |_| {}).unwrap();
+        let g = solved.gravity.expect("the report's gravity");
+        assert!(g.data_used && g.note.is_none(), "{g:?}");
+        (g, solved.solution.displacements, run.prepared)
+    };
+    // The scene believes the level 10 mm too high (z = 40); estimated along gravity (−z), the
+    // shift is positive downwards: the closed form says 10 mm.
+    let (g, u, p) = estimate(40.0, 9.81, "estimate = { level = 15.0 }");
+    let e = &g.estimates[0];
+    assert_eq!(e.name, "level");
+    // The model's own settlement error (below 0.5 % of it: gravity_is_the_prior…), divided
+    // by the top's sensitivity to the level, bounds the level's error; three times that.
+    let found = 40.0 - e.estimate;
+    let bound = 3.0 * 0.005 * settlement / per_mm.abs();
+    assert!((found - 30.0).abs() < bound, "level {found} against 30 (bound {bound})");
+    // The standard error of a least-squares level from `inliers` points of noise σ = 0.1
+    // whose distances move by `per_mm` per mm of level, with the 15 mm prior.
+    let data = 0.1 / ((g.inliers as f64).sqrt() * per_mm.abs());
+    let expected = 1.0 / (1.0 / (data * data) + 1.0 / 225.0).sqrt();
+    assert!(e.determined, "{e:?}");
+    assert!(
+        (e.standard_error / expected - 1.0).abs() < 0.2,
+        "{e:?}: expected {expected} ({} inliers, {per_mm} mm/mm)",
+        g.inliers
+    );
+    // The data then pull the top onto the scan.
+    let top = (0..p.mesh.nodes.len())
+        .max_by(|&a, &b| p.mesh.nodes[a].z.total_cmp(&p.mesh.nodes[b].z))
+        .unwrap();
+    assert!((height + u[top].z - scan_z).abs() < 0.02, "top at {}", height + u[top].z);
+    // The weight with the level known: the scene's acceleration 20 % low.
+    let (g, _, _) = estimate(30.0, 9.81 / 1.2, "estimate = { weight = 0.3 }");
+    let e = &g.estimates[0];
+    assert_eq!(e.name, "weight");
+    // The settlement's relative error (0.5 %) is about the weight's; three times that.
+    assert!(
+        (1.0 + e.estimate - 1.2).abs() < 3.0 * 0.005 * 1.2,
+        "weight factor {}",
+        1.0 + e.estimate
+    );
+}
+
+#[test]
+fn a_bad_estimate_is_refused_naming_its_key() {
+    let dir = tmp("estimate-bad");
+    let bad = |fluid: &str, estimate: &str, measured: bool| {
+        let path = column_scene(&dir, 30.0, 9.81, "", 78.0);
+        let mut text = std::fs::read_to_string(&path).unwrap();
+        text = text.replace("fluid = { density = 1007.0, level = [5.0, 5.0, 30.0] }", fluid);
+        text = text.replace("[[measurement]]", &format!("{estimate}\n[[measurement]]"));
+        if !measured {
+            let cut = text.find("[[measurement]]").unwrap();
+            let end = text.find("[solver]").unwrap();
+            text.replace_range(cut..end, "");
+        }
+        std::fs::write(&path, text).unwrap();
+        match Prepared::load(&path) {
+            Ok(_) => panic!("accepted: {estimate}"),
+            Err(e) => e.to_string(),
+        }
+    };
+    let fluid = "fluid = { density = 1007.0, level = [5.0, 5.0, 30.0] }";
+    let m = bad(fluid, "estimate = { level = 15.0 }", false);
+    assert!(m.contains("estimate (level) needs data") && m.contains("[[measurement]]"), "{m}");
+    let m = bad("", "estimate = { level = 15.0 }", true);
+    assert!(m.contains("estimate.level") && m.contains("no fluid"), "{m}");
+    let m = bad(fluid, "estimate = { level = 0.0 }", true);
+    assert!(m.contains("estimate.level = 0") && m.contains("positive"), "{m}");
+    let m = bad(fluid, "estimate = { weight = -0.3 }", true);
+    assert!(m.contains("estimate.weight = -0.3"), "{m}");
+    let m = bad(fluid, "estimate = { levle = 15.0 }", true);
+    assert!(m.contains("levle") && m.contains("level"), "{m}");
+    let m = bad(fluid, "estimate = { }", true);
+    assert!(m.contains("names nothing"), "{m}");
+}

@@ -8,6 +8,7 @@ use std::path::PathBuf;
 
 use bs_mesh::Point3;
 
+pub(crate) mod failure;
 pub(crate) mod outcome;
 pub mod pairs;
 pub(crate) mod read;

@@ -91,7 +91,7 @@ fn read_one(
             faces,
             face_elements,
             bone,
-            slide: match m.sliding {
+            slide: match m.sliding_with(scene.gravity.is_some()) {
                 crate::scene::Sliding::Free => None,
                 crate::scene::Sliding::Resisted => {
                     Some(m.sag_direction.map(|d| bs_mesh::Vector3::from(d).normalize()))

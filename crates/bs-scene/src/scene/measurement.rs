@@ -63,9 +63,10 @@ pub struct Measurement {
     /// units; default 20 mm).
     pub max_distance: Option<f64>,
     /// Whether the scanned patch's sliding along itself (which a scan cannot see) is
-    /// resisted by a weak prior (default) or left to the model alone (docs/fit.md).
-    #[serde(default)]
-    pub sliding: Sliding,
+    /// resisted by a weak prior or left to the model alone (docs/fit.md). Default: resisted,
+    /// or free in a scene with `[gravity]`, whose weight decides the sliding
+    /// ([`Measurement::sliding_with`]).
+    pub sliding: Option<Sliding>,
     /// The direction the exposed surface sinks along, which the sliding prior leaves free
     /// (scene frame; default: the patch's mean inward normal, into the window).
     pub sag_direction: Option<[f64; 3]>,
@@ -85,6 +86,18 @@ pub enum Sliding {
 }
 
 impl Measurement {
+    /// The sliding a scan is fitted with in a scene with (`gravity`) or without gravity:
+    /// the key's, else free with gravity (docs/fit.md, the sliding study: the prior
+    /// resists the sideways sinking gravity causes) unless a `sag_direction` asks for the
+    /// prior, else resisted.
+    pub fn sliding_with(&self, gravity: bool) -> Sliding {
+        match self.sliding {
+            Some(s) => s,
+            None if gravity && self.sag_direction.is_none() => Sliding::Free,
+            None => Sliding::Resisted,
+        }
+    }
+
     /// Checks what the types cannot: one kind of data, its keys, positive numbers.
     pub fn validate(&self) -> Result<(), String> {
         match (&self.points, &self.landmarks) {
@@ -104,9 +117,7 @@ impl Measurement {
             (None, Some(_)) if self.skull_points.is_some() || self.rigid => {
                 return Err("skull_points and rigid go with points (a scan), not landmarks".into());
             }
-            (None, Some(_))
-                if self.sliding != Sliding::Resisted || self.sag_direction.is_some() =>
-            {
+            (None, Some(_)) if self.sliding.is_some() || self.sag_direction.is_some() => {
                 return Err(
                     "sliding and sag_direction go with points (a scan), not landmarks".into()
                 );
@@ -131,7 +142,7 @@ impl Measurement {
                     "sag_direction must be a non-zero vector [x, y, z] (scene frame), got {d:?}"
                 ));
             }
-            if self.sliding == Sliding::Free {
+            if self.sliding == Some(Sliding::Free) {
                 return Err("sag_direction is the direction the sliding prior leaves free: \
                             with sliding = \"free\" there is no prior; drop one of them"
                     .into());

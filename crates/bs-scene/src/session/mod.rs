@@ -97,7 +97,17 @@ impl Session {
         let Session { run, state, warm, history, .. } = self;
         let secant = history.secant(&run.prepared.prescribed);
         let from = warm.then_some(WarmStart { state, secant });
-        let (solution, max_penetration_before) = if crate::inverse::has_landmarks(&run.prepared) {
+        // An estimate of gravity's unknowns starts from the scene's gravity each time (the
+        // scan is new); when the data cannot be carried the answer is the prior's, verified
+        // without the data, and the data terms come back for the next update.
+        let (mut estimated, mut kept) = (None, None);
+        let (solution, max_penetration_before) = if crate::estimate::estimates(&run.prepared) {
+            kept = run.composed.fit.clone();
+            let (p, c) = (&run.prepared, &mut run.composed);
+            let (s, pen, g) = crate::estimate::solve(p, c, &run.settings, observer)?;
+            estimated = Some(g);
+            (s, pen)
+        } else if crate::inverse::has_landmarks(&run.prepared) {
             let warm = from.map(|w| w.state);
             let (p, c) = (&mut run.prepared, &mut run.composed);
             let (s, pen, _) = crate::inverse::solve(p, c, &run.settings, warm, observer)?;
@@ -107,15 +117,26 @@ impl Session {
                 .map_err(|e| crate::imposed::explain(run.prepared.imposed(), e))?
         };
         let tolerance = run.settings.tolerance;
-        let verification =
-            verify(&run.prepared, &run.composed, &solution.displacements, tolerance)?;
+        let verification = verify(&run.prepared, &run.composed, &solution.displacements, tolerance);
+        let measured = run.composed.fit.is_some();
+        if !measured {
+            run.composed.fit = kept;
+        }
+        let verification = verification?;
         let last = std::mem::replace(state, solution.displacements.clone());
         let contact = solution.report.contact.nodes_in_contact;
         history.advance(last, &run.prepared.prescribed, contact);
         *warm = true;
         let seconds = start.elapsed().as_secs_f64();
         let (p, c) = (&run.prepared, &run.composed);
-        Ok(Solved::new(p, c, solution, max_penetration_before, verification, seconds))
+        let mut solved = Solved::new(p, c, solution, max_penetration_before, verification, seconds);
+        if estimated.is_some() {
+            solved.gravity = estimated;
+            if !measured {
+                (solved.measurements, solved.residuals) = (Vec::new(), Vec::new());
+            }
+        }
+        Ok(solved)
     }
 
     /// Writes new values of prescribed boundaries (other boundaries keep their last values)

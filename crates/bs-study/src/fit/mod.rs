@@ -4,9 +4,14 @@
 //!
 //! * `fit fixture` writes `fixtures/fit/` (the truth, one scan of the first target case as
 //!   .csv and .ply, its scene);
-//! * `fit study [--quick]` runs the grid and writes the table and the chart of `docs/fit.md`.
+//! * `fit study [--quick]` runs the grid and writes the table and the chart of `docs/fit.md`;
+//! * `fit gravity [--quick]` fits scans of gravity-driven truths with gravity known, off and
+//!   estimated ([`gravity`]) and writes its table in `docs/fit.md`;
+//! * `fit gravity-fixture` writes `fixtures/fit-gravity/` (a gravity truth, its scan, the
+//!   fit estimating level and direction, and that scene's forward solve).
 
 mod chart;
+mod gravity;
 mod landmarks;
 mod study;
 mod truth;
@@ -116,11 +121,39 @@ pub fn run_study(quick: bool) -> Result<(), String> {
     Ok(())
 }
 
+/// `cargo xtask fit gravity [--quick]`.
+pub fn run_gravity(quick: bool) -> Result<(), String> {
+    let started = Instant::now();
+    let mesh_dir = regions().display().to_string();
+    let mut rows = Vec::new();
+    for (k, load) in gravity::loads(quick).iter().enumerate() {
+        let dir = root().join(format!("target/fit-gravity/{k}"));
+        rows.extend(gravity::rows(load, &dir, &mesh_dir)?);
+    }
+    let mut doc = gravity::table(&rows);
+    writeln!(
+        doc,
+        "
+Made by `cargo xtask fit gravity` in {:.0} s (2 threads).",
+        started.elapsed().as_secs_f64()
+    )
+    .unwrap();
+    if quick {
+        print!("{doc}");
+        return Ok(());
+    }
+    crate::util::replace_block(&root().join("docs/fit.md"), "fit-gravity", &doc)?;
+    println!("wrote docs/fit.md");
+    Ok(())
+}
+
 /// `cargo xtask fit ...`.
 pub fn main(args: &[String]) -> Result<(), String> {
     match args.first().map(String::as_str) {
         Some("fixture") => fixture(),
         Some("study") => run_study(args.iter().any(|a| a == "--quick")),
+        Some("gravity") => run_gravity(args.iter().any(|a| a == "--quick")),
+        Some("gravity-fixture") => gravity::fixture(),
         Some("try") => {
             // One case into target/fit-try (for exploring): SIGMA COVERAGE OUTLIERS MISALIGNMENT.
             let v: Vec<f64> = args[1..].iter().map(|a| a.parse().unwrap_or(0.0)).collect();

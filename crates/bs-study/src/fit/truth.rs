@@ -109,7 +109,7 @@ pub fn truth_tilted(dir: &Path, mesh_dir: &str, tilt: f64) -> Result<Truth, Stri
 }
 
 /// The boundary faces with all nodes in `member`.
-fn patch(mesh: &Mesh, member: &[bool]) -> Vec<[usize; 3]> {
+pub(super) fn patch(mesh: &Mesh, member: &[bool]) -> Vec<[usize; 3]> {
     let b = mesh.boundary();
     b.surface
         .triangles
@@ -127,6 +127,8 @@ pub struct Solve {
     pub min_jacobian: f64,
     /// The first measurement's report, when the scene has one.
     pub measurement: Option<bs_scene::measure::MeasurementReport>,
+    /// The gravity solved with and its estimates, when the scene has `[gravity]`.
+    pub gravity: Option<bs_scene::estimate::GravityReport>,
 }
 
 /// A scene's verified displacements and what the solve took.
@@ -139,6 +141,7 @@ pub fn solve(scene: &Path) -> Result<Solve, String> {
         iterations: s.solution.report.steps,
         min_jacobian: s.verification.min_jacobian,
         measurement: s.measurements.first().cloned(),
+        gravity: s.gravity.clone(),
         u: s.solution.displacements,
     })
 }
