@@ -134,7 +134,7 @@ impl Prepared {
             skull.as_ref(),
         )?;
         if let Some(e) = scene.gravity.as_ref().and_then(|g| g.estimate.as_ref()) {
-            crate::estimate::check_data(e, &measurements)
+            crate::measure::read::check_estimate_data(e, &measurements)
                 .map_err(|message| SceneError::Scene { file: sp.clone(), message })?;
         }
         let prescribed = crate::measure::read::control(&mesh, prescribed, &measurements);

@@ -154,9 +154,11 @@ fn perturbed_material_differs_in_the_last_digits() {
 /// acceptance, an active-set change, the forcing term's switch) move with rounding, and the
 /// node order also changes the two-level preconditioner's aggregates and so every GMRES
 /// solve. A knife edge is a verdict that flips or a count that jumps by an order of
-/// magnitude; a factor 2 bounds what was measured on the block cells (e.g. 16 mm: 18, 25,
-/// 14) with room for machine differences.
-const COUNT_RATIO: f64 = 2.0;
+/// magnitude. With the two-level preconditioner a factor 2 bounded what was measured (e.g.
+/// 16 mm: 18, 25, 14); the multilevel hierarchy's aggregates follow the node order on every
+/// level, and the 34 mm indentation, the block's hardest cell, took 57, 66 and 143 (as built,
+/// perturbed, permuted): a factor 3 bounds that, still far from an order of magnitude.
+const COUNT_RATIO: f64 = 3.0;
 
 /// T4 at ν = 0.4999 locks (its result is far from T4ANP's, see the Poisson row's note): its
 /// verdict is checked, not its count, which follows the locked element's ill-conditioning

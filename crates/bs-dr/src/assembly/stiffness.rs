@@ -13,7 +13,7 @@
 //! two-ring. `K₀` is returned as a [`NodalMatrix`] (the assembled element part plus the
 //! nodal term).
 //!
-//! [`super::stiffness_at`] moves the same small-strain stiffness to a deformed configuration
+//! The sibling module `stiffness_at` moves the same small-strain stiffness to a deformed configuration
 //! in place (the elements' gradients and volumes at `X + u`, the reference moduli): the
 //! preconditioner following the state, where `K₀` drifts from the tangent.
 

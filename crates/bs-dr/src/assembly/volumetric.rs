@@ -1,4 +1,4 @@
-//! The T4ANP nodal volumetric term of `K₀` ([`super::stiffness`]) moved to another
+//! The T4ANP nodal volumetric term of `K₀` (of the sibling module `stiffness`) moved to another
 //! configuration in place: the mixed form of the nearly incompressible split rebuilds it at
 //! every linearisation point, so the pattern's index maps and the moved tetrahedra live in a
 //! caller-owned [`VolumetricScratch`].

@@ -33,9 +33,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::SceneError;
 use crate::compose::{Composed, dead_loads, loads_of};
-use crate::measure::{Measured, MeasuredData};
 use crate::prepare::Prepared;
-use crate::scene::{Estimate, Gravity};
+use crate::scene::Gravity;
 use crate::solve::{SolveSettings, solve_composed_from};
 use params::{Param, Unknowns};
 use residuals::{Residuals, residuals};
@@ -126,26 +125,6 @@ impl GravityReport {
             .collect::<Vec<_>>()
             .join(", ")
     }
-}
-
-/// The data an `estimate` needs: at least one scan.
-pub(crate) fn check_data(e: &Estimate, measurements: &[Measured]) -> Result<(), String> {
-    let names = e.named().iter().map(|(k, _)| *k).collect::<Vec<_>>().join(", ");
-    if measurements.is_empty() {
-        return Err(format!(
-            "[gravity] estimate ({names}) needs data: without a [[measurement]] nothing tells \
-             the parameters from their prior. Add a scan ([[measurement]] points = …) or \
-             remove estimate to solve with the scene's values"
-        ));
-    }
-    if !measurements.iter().any(|m| matches!(m.data, MeasuredData::Surface { .. })) {
-        return Err(format!(
-            "[gravity] estimate ({names}) is fitted to a scanned surface ([[measurement]] \
-             points = …); landmarks alone do not estimate gravity in this version. Add the \
-             scan, or remove estimate"
-        ));
-    }
-    Ok(())
 }
 
 /// Whether `p` estimates gravity.

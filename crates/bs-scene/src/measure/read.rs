@@ -380,3 +380,26 @@ pub(crate) fn check_frame(
         ),
     })
 }
+
+/// The data an `estimate` needs: at least one scan.
+pub(crate) fn check_estimate_data(
+    e: &crate::scene::Estimate,
+    measurements: &[super::Measured],
+) -> Result<(), String> {
+    let names = e.named().iter().map(|(k, _)| *k).collect::<Vec<_>>().join(", ");
+    if measurements.is_empty() {
+        return Err(format!(
+            "[gravity] estimate ({names}) needs data: without a [[measurement]] nothing tells \
+             the parameters from their prior. Add a scan ([[measurement]] points = …) or \
+             remove estimate to solve with the scene's values"
+        ));
+    }
+    if !measurements.iter().any(|m| matches!(m.data, super::MeasuredData::Surface { .. })) {
+        return Err(format!(
+            "[gravity] estimate ({names}) is fitted to a scanned surface ([[measurement]] \
+             points = …); landmarks alone do not estimate gravity in this version. Add the \
+             scan, or remove estimate"
+        ));
+    }
+    Ok(())
+}

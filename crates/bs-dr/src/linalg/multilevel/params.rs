@@ -1,6 +1,6 @@
 //! The parameters of the multilevel preconditioner and why it can fail to build.
 
-/// Parameters of [`Multilevel`](super::Multilevel).
+/// Parameters of the multilevel preconditioner (`Multilevel`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MultilevelParams {
     /// Size of the mesh's aggregates (the cells of the first coarse level) in mean edge
