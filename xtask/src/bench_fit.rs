@@ -129,7 +129,7 @@ pub fn main() -> Result<(), String> {
     let (gf, ge) = (median(gf), median(ge));
     writeln!(
         table,
-        "| fixtures/fit-gravity: level and direction estimated with the scan, median of {REPEATS} |          {gf:.2} (the forward gravity solve) | {ge:.2} ({:.0} solves) | {:.1}× |",
+        "| fixtures/fit-gravity: level and direction estimated with the scan, median of {REPEATS} | {gf:.2} (the forward gravity solve) | {ge:.2} ({:.0} solves) | {:.1}× |",
         median(solves),
         ge / gf
     )
