@@ -105,15 +105,19 @@ impl Run {
             solve_composed(&mut self.composed, &self.settings, observer)
                 .map_err(|e| crate::imposed::explain(self.prepared.imposed(), e))?
         };
+        let kept = crate::estimate::unused_data(&mut self.composed, estimated.as_ref());
         let verification = verify(
             &self.prepared,
             &self.composed,
             &solution.displacements,
             self.settings.tolerance,
-        )?;
+        );
         let seconds = started.elapsed().as_secs_f64();
         let (p, c) = (&self.prepared, &self.composed);
-        let mut solved = Solved::new(p, c, solution, max_penetration_before, verification, seconds);
+        let solved =
+            verification.map(|v| Solved::new(p, c, solution, max_penetration_before, v, seconds));
+        crate::estimate::restore(&mut self.composed, kept);
+        let mut solved = solved?;
         if estimated.is_some() {
             solved.gravity = estimated;
         }

@@ -33,6 +33,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::SceneError;
 use crate::compose::{Composed, dead_loads, loads_of};
+use crate::measure::FitState;
 use crate::prepare::Prepared;
 use crate::scene::Gravity;
 use crate::solve::{SolveSettings, solve_composed_from};
@@ -170,12 +171,25 @@ pub fn solve(
                      data",
                     crate::measure::failure::pull_failure(p, &err)
                 ));
-                c.fit = None;
                 (e.prior.clone(), e.penetration, false)
             }
         };
     let report = report(&unknowns, &at, &e, data_used);
     Ok((solution, penetration, report))
+}
+
+/// The data terms of `c` when an estimate's answer is the prior's (`g` says the data were
+/// not used): that answer is verified and reported without them; the caller puts them back
+/// with [`restore`] for the next solve.
+pub(crate) fn unused_data(c: &mut Composed, g: Option<&GravityReport>) -> Option<FitState> {
+    g.filter(|g| !g.data_used).and_then(|_| c.fit.take())
+}
+
+/// Puts back what [`unused_data`] took.
+pub(crate) fn restore(c: &mut Composed, kept: Option<FitState>) {
+    if kept.is_some() {
+        c.fit = kept;
+    }
 }
 
 /// Gauss–Newton on the unknowns (module documentation); `fits` are the scans, kept out of

@@ -100,9 +100,8 @@ impl Session {
         // An estimate of gravity's unknowns starts from the scene's gravity each time (the
         // scan is new); when the data cannot be carried the answer is the prior's, verified
         // without the data, and the data terms come back for the next update.
-        let (mut estimated, mut kept) = (None, None);
+        let mut estimated = None;
         let (solution, max_penetration_before) = if crate::estimate::estimates(&run.prepared) {
-            kept = run.composed.fit.clone();
             let (p, c) = (&run.prepared, &mut run.composed);
             let (s, pen, g) = crate::estimate::solve(p, c, &run.settings, observer)?;
             estimated = Some(g);
@@ -117,12 +116,15 @@ impl Session {
                 .map_err(|e| crate::imposed::explain(run.prepared.imposed(), e))?
         };
         let tolerance = run.settings.tolerance;
+        let kept = crate::estimate::unused_data(&mut run.composed, estimated.as_ref());
         let verification = verify(&run.prepared, &run.composed, &solution.displacements, tolerance);
-        let measured = run.composed.fit.is_some();
-        if !measured {
-            run.composed.fit = kept;
-        }
-        let verification = verification?;
+        let verification = match verification {
+            Ok(v) => v,
+            Err(e) => {
+                crate::estimate::restore(&mut run.composed, kept);
+                return Err(e.into());
+            }
+        };
         let last = std::mem::replace(state, solution.displacements.clone());
         let contact = solution.report.contact.nodes_in_contact;
         history.advance(last, &run.prepared.prescribed, contact);
@@ -130,11 +132,9 @@ impl Session {
         let seconds = start.elapsed().as_secs_f64();
         let (p, c) = (&run.prepared, &run.composed);
         let mut solved = Solved::new(p, c, solution, max_penetration_before, verification, seconds);
+        crate::estimate::restore(&mut run.composed, kept);
         if estimated.is_some() {
             solved.gravity = estimated;
-            if !measured {
-                (solved.measurements, solved.residuals) = (Vec::new(), Vec::new());
-            }
         }
         Ok(solved)
     }
