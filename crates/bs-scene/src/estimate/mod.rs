@@ -105,7 +105,7 @@ impl GravityReport {
         }
     }
 
-    /// The run line's words for the estimates (`level +9.6 ± 0.4 mm, weight …`).
+    /// The run line's words for the estimates (`level 9.60 ± 0.40 mm, weight 12.00 ± 5.00 %`).
     pub fn summary(&self, unit: &str) -> String {
         self.estimates
             .iter()
@@ -115,13 +115,12 @@ impl GravityReport {
                     "direction" => "°".into(),
                     _ => String::new(),
                 };
-                let sign = if e.name == "direction" { "" } else { "+" };
                 let flag = if e.determined { "" } else { " (not determined by the data)" };
                 let v = if e.name == "weight" { 100.0 * e.estimate } else { e.estimate };
                 let s =
                     if e.name == "weight" { 100.0 * e.standard_error } else { e.standard_error };
                 let pct = if e.name == "weight" { " %" } else { "" };
-                format!("{} {v:sign$.2} ± {s:.2}{pct}{u}{flag}", e.name, sign = sign.len())
+                format!("{} {v:.2} ± {s:.2}{pct}{u}{flag}", e.name)
             })
             .collect::<Vec<_>>()
             .join(", ")
@@ -446,5 +445,40 @@ fn report(u: &Unknowns, at: &Gravity, e: &Estimated, data_used: bool) -> Gravity
         data_used,
         note: e.note.clone(),
         ..GravityReport::of(at)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_summary_names_each_estimate_with_its_unit_and_says_which_the_data_leave_open() {
+        let est = |name: &str, estimate, standard_error, determined| ParameterEstimate {
+            name: name.into(),
+            estimate,
+            standard_error,
+            prior: 1.0,
+            determined,
+        };
+        let g = GravityReport {
+            estimates: vec![
+                est("level", 9.6, 0.4, true),
+                est("direction", 2.5, 0.7, true),
+                est("weight", 0.12, 0.3, false),
+            ],
+            ..GravityReport::of(&crate::scene::Gravity {
+                direction: [0.0, 0.0, -2.0],
+                acceleration: 9.81,
+                fluid: None,
+                estimate: None,
+            })
+        };
+        assert_eq!(g.direction, [0.0, 0.0, -1.0]);
+        assert_eq!(
+            g.summary("mm"),
+            "level 9.60 ± 0.40 mm, direction 2.50 ± 0.70°, weight 12.00 ± 30.00 % (not \
+             determined by the data)"
+        );
     }
 }
