@@ -152,14 +152,7 @@ fn scenes(
     dir: &Path,
     mesh_dir: &str,
 ) -> Result<Vec<(&'static str, String)>, String> {
-    let case = Case {
-        sigma: 1.0,
-        coverage: 0.5,
-        outliers: 0.05,
-        misalignment: 2.0,
-        seed: 47,
-        free: false,
-    };
+    let case = Case::target();
     let scan = homogeneous(&truth::write_scan(t, &case, dir, mesh_dir)?);
     let model = homogeneous(&truth::scene_text("", mesh_dir));
     let with = |text: &str, g: String| text.replace("[contact]", &format!("{g}\n[contact]"));

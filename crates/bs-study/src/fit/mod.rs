@@ -29,14 +29,7 @@ pub fn fixture() -> Result<(), String> {
     let dir = root().join("fixtures/fit");
     let started = Instant::now();
     let t = truth(&dir, "../mni152-regions")?;
-    let case = Case {
-        sigma: 1.0,
-        coverage: 0.5,
-        outliers: 0.05,
-        misalignment: 2.0,
-        seed: 47,
-        free: false,
-    };
+    let case = Case::target();
     let text = write_scan(&t, &case, &dir, "../mni152-regions")?;
     crate::util::write(&dir.join("scene.toml"), &text)?;
     // The same scan as a PLY file (for the test that both give the same answer).

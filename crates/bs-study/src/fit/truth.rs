@@ -161,6 +161,12 @@ pub struct Case {
 }
 
 impl Case {
+    /// The first target row: σ 1 mm, half the window, 5 % outliers, 2 mm misalignment with
+    /// bone points, seed 47 (fixtures/fit's scan and the gravity study's).
+    pub fn target() -> Case {
+        Case { sigma: 1.0, coverage: 0.5, outliers: 0.05, misalignment: 2.0, seed: 47, free: false }
+    }
+
     pub fn coverage(&self) -> Coverage {
         let (a, b) =
             (Vector3::new(1.0, 0.3, 0.0).normalize(), Vector3::new(-0.3, 1.0, 0.0).normalize());
