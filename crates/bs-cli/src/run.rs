@@ -217,8 +217,12 @@ fn estimate_line(g: &bs_scene::estimate::GravityReport, u_unit: &str) -> Option<
     }
     let data = if g.data_used { "" } else { "; the data were not used" };
     let note = g.note.as_ref().map_or(String::new(), |n| format!(" ({n})"));
+    let landmarks = match g.landmark_inliers {
+        0 => String::new(),
+        n => format!(" and {n} landmarks"),
+    };
     Some(format!(
-        "gravity estimated from {} scan points in {} Gauss-Newton iterations ({} solves): {}{data}{note}\n",
+        "gravity estimated from {} scan points{landmarks} in {} Gauss-Newton iterations ({} solves): {}{data}{note}\n",
         g.inliers,
         g.iterations,
         g.solves,
@@ -270,13 +274,16 @@ pub fn measurement_line(i: usize, m: &bs_scene::measure::MeasurementReport, u: &
         )
     });
     if m.kind == "landmarks" {
+        let through = match m.nset.as_str() {
+            "" => "beside the scan (gravity's evidence)".to_string(),
+            set => format!("through {set}"),
+        };
         return format!(
-            "[[measurement]] #{} landmarks {} through {}: {} of {} pairs inliers ({} outliers), \
+            "[[measurement]] #{} landmarks {} {through}: {} of {} pairs inliers ({} outliers), \
              residual RMS {:.3} {u} (max {:.3}) after {} model solves; the landmarks moved up to \
              {:.3} {u} (mean {:.3})",
             i + 1,
             m.file,
-            m.nset,
             m.inliers,
             m.points,
             m.outliers,

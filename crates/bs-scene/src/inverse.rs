@@ -49,8 +49,11 @@ struct Problem {
     sigma: f64,
 }
 
+/// The landmarks fitted through their node set (beside a scan they name none: they are
+/// the gravity estimate's evidence, crate::estimate).
 fn problem(p: &Prepared) -> Option<Problem> {
     p.measurements.iter().find_map(|m| match &m.data {
+        MeasuredData::Landmarks { .. } if m.nset.is_empty() => None,
         MeasuredData::Landmarks { pairs, anchors, .. } => Some(Problem {
             nodes: p.mesh.node_set(&m.nset).map(<[usize]>::to_vec).unwrap_or_default(),
             measured: pairs.pre.iter().zip(&pairs.intra).map(|(a, b)| b - a).collect(),
@@ -157,6 +160,21 @@ fn impose(
     c.load_scale = scale_of(&c.model, &loads, c.fit.as_ref());
     c.loads = loads;
     Ok(())
+}
+
+/// Whether anything but the control nodes loads the model: a body force (gravity, a
+/// cavity's pressure) or a non-zero prescribed component elsewhere. Then the boundary at
+/// rest is not the reference state, and the Jacobian's probes start from its answer.
+fn loaded_without(p: &Prepared, c: &Composed, nodes: &[usize]) -> bool {
+    let mut control = vec![false; p.mesh.nodes.len()];
+    for &n in nodes {
+        control[n] = true;
+    }
+    c.body.iter().any(|f| f.norm() > 0.0)
+        || p.prescribed
+            .iter()
+            .zip(&control)
+            .any(|(v, &is)| !is && v.iter().any(|x| x.is_some_and(|x| x != 0.0)))
 }
 
 /// The model's displacement at the landmarks, stacked (3 per landmark).
@@ -296,22 +314,34 @@ pub fn solve(
         solve_composed_from(c, settings, start, observer)
             .map_err(|e| crate::imposed::explain(p.imposed(), e))
     };
-    // The Jacobian: one solve per basis field at PROBE_MM from the reference.
+    // The state with the boundary at rest: the reference, or the other loads' answer (a
+    // body force, another boundary's push) when there are any.
+    let base = match loaded_without(p, c, &pb.nodes) {
+        true => Some(run(p, c, &vec![Vector3::zeros(); pb.nodes.len()], warm, observer)?.0),
+        false => None,
+    };
+    let at_rest = base.as_ref().map_or_else(
+        || DVector::zeros(3 * pb.anchors.len()),
+        |s| at_landmarks(&pb, &s.displacements),
+    );
+    // The Jacobian: one solve per basis field at PROBE_MM from the state at rest.
     let h = PROBE_MM * mm;
     let mut j = DMatrix::zeros(3 * pb.anchors.len(), modes.len());
     for (k, m) in modes.iter().enumerate() {
         let b: Vec<Vector3<f64>> = m.iter().map(|v| v * h).collect();
-        let (s, _) = run(p, c, &b, None, observer)?;
-        j.set_column(k, &(at_landmarks(&pb, &s.displacements) / h));
+        let from = base.as_ref().map(|s| s.displacements.as_slice());
+        let (s, _) = run(p, c, &b, from, observer)?;
+        j.set_column(k, &((at_landmarks(&pb, &s.displacements) - &at_rest) / h));
     }
     let d = DVector::from_iterator(
         3 * pb.measured.len(),
         pb.measured.iter().flat_map(|v| [v.x, v.y, v.z]),
     );
     let mut a = DVector::zeros(modes.len());
-    let mut r = d.clone();
+    let mut r = &d - &at_rest;
     let (mut w, _) = weights(&pb, &r);
-    let mut state: Option<Vec<Vector3<f64>>> = warm.map(<[_]>::to_vec);
+    let mut state: Option<Vec<Vector3<f64>>> =
+        warm.map(<[_]>::to_vec).or_else(|| base.map(|s| s.displacements));
     let mut best: Option<(f64, Solution, f64, Vec<Vector3<f64>>)> = None;
     let mut mu = None;
     for _ in 0..CHORD_STEPS {

@@ -553,7 +553,7 @@ fn bad_landmarks_are_refused_naming_the_file_and_line() {
     assert!(e.contains("also held by a [[boundary]]"), "{e}");
     let no_set = "[[measurement]]\nlandmarks = \"pairs.csv\"\nsigma = 1\n";
     let e = Prepared::load(&held_box(&dir, no_set)).unwrap_err().to_string();
-    assert!(e.contains("landmarks needs nset"), "{e}");
+    assert!(e.contains("landmarks fitted alone need nset"), "{e}");
 }
 
 /// A new scan in a live session is fitted with the session's preparation and lands where a
@@ -780,4 +780,88 @@ fn a_bad_estimate_is_refused_naming_its_key() {
     assert!(m.contains("levle") && m.contains("level"), "{m}");
     let m = bad(fluid, "estimate = { }", true);
     assert!(m.contains("names nothing"), "{m}");
+}
+
+/// Landmarks beside a scan are evidence for the level: the column's top scanned and
+/// landmarks inside it at their closed-form displacements, the level estimated from both.
+/// The least-squares information of the level is the sum of the scan's and the landmarks'
+/// (each landmark's axial miss moves by the closed form's sensitivity at its height; its
+/// lateral misses do not move), so the standard error is the closed form's of that sum.
+#[test]
+fn landmarks_beside_the_scan_add_their_closed_form_information_to_the_level() {
+    use bs_material::closed_form::confined_column_displacement;
+    let dir = tmp("column-landmarks");
+    let height = 80.0;
+    let law = bs_material::Material::neo_hookean(3000.0, 0.45).unwrap();
+    let at = |level: f64, z: &[f64]| {
+        let (w, wf) = (1040.0 * 9.81e-3, 1007.0 * 9.81e-3);
+        let weight = move |h: f64| if h < level { w - wf } else { w };
+        confined_column_displacement(&law, height, &weight, 0.0, z).unwrap()
+    };
+    let scan_z = height + at(30.0, &[height])[0];
+    // Forty landmarks 4–74 mm up the column, away from its sides.
+    let heights: Vec<f64> = (0..40).map(|k| 4.0 + 1.8 * k as f64).collect();
+    let u = at(30.0, &heights);
+    let mut pairs = String::from("x,y,z,x2,y2,z2\n");
+    for (k, (z, dz)) in heights.iter().zip(&u).enumerate() {
+        let (x, y) = (5.0 + 5.0 * (k % 3) as f64, 5.0 + 5.0 * ((k / 3) % 3) as f64);
+        pairs += &format!("{x},{y},{z},{x},{y},{}\n", z + dz);
+    }
+    std::fs::write(dir.join("pairs.csv"), pairs).unwrap();
+    let path = column_scene(&dir, 40.0, 9.81, "estimate = { level = 15.0 }", scan_z);
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("[solver]", "[[measurement]]\nlandmarks = \"pairs.csv\"\nsigma = 0.03\n[solver]");
+    std::fs::write(&path, text).unwrap();
+    let mut run = Run::prepare(Prepared::load(&path).unwrap()).unwrap();
+    let solved = run.solve(&mut |_| {}).unwrap();
+    let g = solved.gravity.expect("the report's gravity");
+    assert!(g.data_used && g.note.is_none(), "{g:?}");
+    assert_eq!(g.landmark_inliers, 40, "{g:?}");
+    let e = &g.estimates[0];
+    // The level within three times the model's settlement error over the top's
+    // sensitivity, as the scan alone (the_estimated_level_and_weight_…).
+    let sensitivity = |z: &[f64]| -> Vec<f64> {
+        at(31.0, z).iter().zip(at(29.0, z)).map(|(a, b)| (a - b) / 2.0).collect()
+    };
+    let per_mm = sensitivity(&[height])[0].abs();
+    let found = 40.0 - e.estimate;
+    let bound = 3.0 * 0.005 * -at(30.0, &[height])[0] / per_mm;
+    assert!((found - 30.0).abs() < bound, "level {found} against 30 (bound {bound})");
+    let landmarks: f64 = sensitivity(&heights).iter().map(|s| s * s).sum();
+    // The scan's noise 0.1 mm, the landmarks' 0.03 (so that they matter beside the scan's
+    // hundreds of points).
+    let information = g.inliers as f64 * per_mm * per_mm / 0.01 + landmarks / 0.0009 + 1.0 / 225.0;
+    let expected = 1.0 / information.sqrt();
+    let scan_only = 1.0 / (g.inliers as f64 * per_mm * per_mm / 0.01 + 1.0 / 225.0).sqrt();
+    assert!(expected < 0.9 * scan_only, "the landmarks must matter: {expected} {scan_only}");
+    assert!(
+        (e.standard_error / expected - 1.0).abs() < 0.2,
+        "{e:?}: expected {expected} (scan alone {scan_only})"
+    );
+    // The landmarks are reported as measured, not pulled (the scan pulls).
+    let m = &solved.measurements[1];
+    assert_eq!((m.kind.as_str(), m.nset.as_str()), ("landmarks", ""));
+    assert!(m.max_residual < 0.1, "{m:?}");
+}
+
+/// Landmarks beside a scan without an estimate, or naming a set, are refused saying why.
+#[test]
+fn landmarks_beside_a_scan_need_an_estimate_and_no_set() {
+    let dir = tmp("column-landmarks-bad");
+    std::fs::write(dir.join("pairs.csv"), "x,y,z,x2,y2,z2\n10,10,40,10,10,39\n").unwrap();
+    let refused = |estimate: &str, nset: &str| {
+        let path = column_scene(&dir, 30.0, 9.81, estimate, 78.0);
+        let text = std::fs::read_to_string(&path).unwrap().replace(
+            "[solver]",
+            &format!("[[measurement]]\nlandmarks = \"pairs.csv\"\n{nset}sigma = 0.1\n[solver]"),
+        );
+        std::fs::write(&path, text).unwrap();
+        Prepared::load(&path).err().map(|e| e.to_string()).unwrap_or_default()
+    };
+    let m = refused("", "");
+    assert!(m.contains("[[measurement]] #2 landmarks") && m.contains("estimate"), "{m}");
+    let m = refused("estimate = { level = 15.0 }", "nset = \"TOP\"\n");
+    assert!(m.contains("[[measurement]] #2 nset") && m.contains("remove nset"), "{m}");
+    assert!(refused("estimate = { level = 15.0 }", "").is_empty());
 }

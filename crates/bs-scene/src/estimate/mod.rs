@@ -4,11 +4,14 @@
 //! degrees); it does not know where the drained fluid stands or the tissue's effective
 //! weight against its stiffness. With `estimate`, the few named parameters `θ` (the level's
 //! shift along gravity, two tilts of the direction, the weight's factor) are fitted to the
-//! scan with the exact nonlinear model before the data pull it:
+//! scan, and to landmark pairs beside it, with the exact nonlinear model before the scan
+//! pulls it:
 //!
-//! 1. the forward solve at `θ` (gravity only, no data term) deforms the exposed surface;
-//!    each scan point's signed distance from it is a residual ([`residuals`]) with its
-//!    robust weight over the squared noise scale;
+//! 1. the forward solve at `θ` (gravity only, no data term) deforms the brain; each scan
+//!    point's signed distance from the exposed surface, and each landmark's miss (three
+//!    components), is a residual ([`residuals`]) with its robust weight over the squared
+//!    noise scale. A window scan sees the surface under it; landmarks deep in the brain see
+//!    it sink as a whole;
 //! 2. Gauss–Newton on `θ` with a Gaussian prior around the scene's values
 //!    ([`gauss_newton`]): the sensitivities are forward differences, one forward solve per
 //!    parameter warm from the current answer (a small load change: a few Newton
@@ -66,6 +69,9 @@ pub struct GravityReport {
     pub solves: usize,
     /// Scan points with evidence at the estimate (inliers on the forward answer).
     pub inliers: usize,
+    /// Landmarks with evidence at the estimate (inliers; 0 without landmarks).
+    #[serde(default)]
+    pub landmark_inliers: usize,
     /// Whether measurements pulled the answer (with an estimate: false when the data's pull
     /// could not be carried and the answer is the prior's at the estimate).
     pub data_used: bool,
@@ -100,6 +106,7 @@ impl GravityReport {
             iterations: 0,
             solves: 0,
             inliers: 0,
+            landmark_inliers: 0,
             data_used: false,
             note: None,
         }
@@ -442,6 +449,7 @@ fn report(u: &Unknowns, at: &Gravity, e: &Estimated, data_used: bool) -> Gravity
         iterations: e.iterations,
         solves: e.solves + 1,
         inliers: e.res.inliers(),
+        landmark_inliers: e.res.landmark_inliers(),
         data_used,
         note: e.note.clone(),
         ..GravityReport::of(at)

@@ -91,11 +91,20 @@ impl Measured {
                     None => String::new(),
                 }
             ),
-            MeasuredData::Landmarks { files, pairs, .. } => format!(
-                "{} landmarks {}: {} pairs fitted point-to-point, sigma {}",
+            MeasuredData::Landmarks { files, pairs, .. } if self.nset.is_empty() => format!(
+                "{} landmarks {}: {} pairs, evidence for gravity's unknowns beside the scan, \
+                 sigma {}",
                 self.key(),
                 files.describe(),
                 pairs.pre.len(),
+                self.sigma
+            ),
+            MeasuredData::Landmarks { files, pairs, .. } => format!(
+                "{} landmarks {}: {} pairs fitted through {}, sigma {}",
+                self.key(),
+                files.describe(),
+                pairs.pre.len(),
+                self.nset,
                 self.sigma
             ),
         }

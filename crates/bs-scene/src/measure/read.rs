@@ -24,22 +24,63 @@ pub(crate) fn read_measurements(
     prescribed: &Prescribed,
     skull: Option<&TriSurface>,
 ) -> Result<Vec<Measured>, SceneError> {
-    let landmarks = scene.measurements.iter().filter(|m| m.landmarks.is_some()).count();
-    if landmarks > 0 && scene.measurements.len() > 1 {
-        return Err(SceneError::Unsupported {
-            scene: sp.to_path_buf(),
-            message: "landmarks are fitted alone in this version: one [[measurement]] with \
-                      landmarks, and no other [[measurement]] (merge the pair files into one, or \
-                      fit the scan alone)"
-                .into(),
-        });
-    }
+    check_combination(sp, scene)?;
     scene
         .measurements
         .iter()
         .enumerate()
         .map(|(i, m)| read_one(sp, scene, mesh, prescribed, skull, i, m))
         .collect()
+}
+
+/// Landmarks fitted alone go through their node set; beside a scan they are evidence for
+/// gravity's unknowns (the scan pulls the boundary), so they need `[gravity] estimate` and
+/// name no set. Two landmark measurements are one: their files are merged.
+fn check_combination(sp: &Path, scene: &Scene) -> Result<(), SceneError> {
+    let err = |i: usize, key: &str, message: &str| SceneError::Read {
+        scene: sp.to_path_buf(),
+        key: format!("[[measurement]] #{} {key}", i + 1),
+        message: message.into(),
+    };
+    let scans = scene.measurements.iter().filter(|m| m.points.is_some()).count();
+    let landmarks: Vec<usize> = (0..scene.measurements.len())
+        .filter(|&i| scene.measurements[i].landmarks.is_some())
+        .collect();
+    if landmarks.len() > 1 {
+        return Err(err(
+            landmarks[1],
+            "landmarks",
+            "one landmark measurement per scene: merge the pair files into one",
+        ));
+    }
+    let Some(&i) = landmarks.first() else { return Ok(()) };
+    let m = &scene.measurements[i];
+    let estimates = scene.gravity.as_ref().is_some_and(|g| g.estimate.is_some());
+    match (scans, &m.nset) {
+        (0, None) => Err(err(
+            i,
+            "nset",
+            "landmarks fitted alone need nset: the boundary nodes the shift comes through \
+             (e.g. nset = \"CRANIOTOMY\"); the fit finds their displacement",
+        )),
+        (0, Some(_)) => Ok(()),
+        (_, Some(_)) => Err(err(
+            i,
+            "nset",
+            "landmarks beside a scan name no nset: the scan pulls the boundary, and the \
+             landmarks are evidence for gravity's unknowns ([gravity] estimate); remove nset, \
+             or fit the landmarks alone",
+        )),
+        (_, None) if !estimates => Err(err(
+            i,
+            "landmarks",
+            "landmarks beside a scan are evidence for gravity's unknowns: add [gravity] with \
+             estimate = { level = … }, or fit the landmarks alone (their springs beside a \
+             scan made the fit worse than the scan alone on one draw of three, \
+             docs/decisions.md)",
+        )),
+        (_, None) => Ok(()),
+    }
 }
 
 fn read_one(
@@ -57,7 +98,9 @@ fn read_one(
     let nset = m.nset.clone().unwrap_or_default();
     let Some(file) = &m.points else {
         let files = m.landmarks.clone().expect("validated: points or landmarks");
-        control_nodes(sp, scene, mesh, prescribed, &key("nset"), &nset)?;
+        if m.nset.is_some() {
+            control_nodes(sp, scene, mesh, prescribed, &key("nset"), &nset)?;
+        }
         let data = read_landmarks(sp, scene, mesh, &key("landmarks"), files)?;
         return Ok(Measured { index: i, nset, sigma: m.sigma, max_distance, rigid: false, data });
     };
@@ -397,8 +440,9 @@ pub(crate) fn check_estimate_data(
     if !measurements.iter().any(|m| matches!(m.data, super::MeasuredData::Surface { .. })) {
         return Err(format!(
             "[gravity] estimate ({names}) is fitted to a scanned surface ([[measurement]] \
-             points = …); landmarks alone do not estimate gravity in this version. Add the \
-             scan, or remove estimate"
+             points = …), with landmarks beside it as further evidence; landmarks alone do \
+             not estimate gravity in this version (their fit imposes the craniotomy's \
+             displacement). Add the scan, or remove estimate"
         ));
     }
     Ok(())

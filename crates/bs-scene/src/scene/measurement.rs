@@ -48,8 +48,10 @@ pub struct Measurement {
     pub points: Option<PathBuf>,
     /// Landmark pairs (pre-operative → intra-operative positions) anywhere in the brain.
     pub landmarks: Option<LandmarkFiles>,
-    /// The boundary nodes the measurement may pull (points: the exposed surface; landmarks:
-    /// where the unknown load acts, the craniotomy, whose displacement the fit finds).
+    /// The boundary nodes the measurement may pull (points: the exposed surface; landmarks
+    /// fitted alone: where the unknown load acts, the craniotomy, whose displacement the fit
+    /// finds; landmarks beside a scan name none: the scan pulls the boundary and the
+    /// landmarks are evidence for gravity's unknowns).
     pub nset: Option<String>,
     /// The measurement's noise: the standard deviation of a point's error, mesh units.
     pub sigma: f64,
@@ -107,11 +109,6 @@ impl Measurement {
             (Some(_), None) if self.nset.is_none() => {
                 return Err("points needs nset: the boundary nodes the scan may pull (e.g. \
                             nset = \"CRANIOTOMY\")"
-                    .into());
-            }
-            (None, Some(_)) if self.nset.is_none() => {
-                return Err("landmarks needs nset: the boundary nodes the shift comes through \
-                            (e.g. nset = \"CRANIOTOMY\"); the fit finds their displacement"
                     .into());
             }
             (None, Some(_)) if self.skull_points.is_some() || self.rigid => {

@@ -8,7 +8,9 @@
 //! segmentation of the ventricles would model) and a scan as the sensor model gives it
 //! (σ 1 mm, half the window, 5 % outliers, 2 mm misalignment with bone points), and, where
 //! a row says so, a scene whose level is 10 mm above the truth's and whose direction is 4°
-//! off it.
+//! off it. The landmark rows take [`LANDMARKS`] pairs 5–25 mm under the craniotomy at σ
+//! 1 mm (the push study's draws): fitted through the craniotomy and imposed by the spline
+//! under the scene's (off) gravity, and beside the scan as evidence for the estimate.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -26,6 +28,11 @@ pub const LEVEL_OFF: f64 = 10.0;
 pub const DIRECTION_OFF: f64 = 4.0;
 /// Prior standard deviations of the estimated rows: level (mm), direction (°), weight.
 pub const PRIOR: (f64, f64, f64) = (15.0, 5.0, 0.3);
+
+/// Landmark pairs of the landmark rows, their noise (mm) and their draw's seed.
+pub const LANDMARKS: usize = 15;
+const LANDMARK_SIGMA: f64 = 1.0;
+const LANDMARK_SEED: u64 = 1000;
 
 /// A gravity-driven truth's load.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -162,6 +169,18 @@ fn scenes(
     let estimate_w = format!("{{ level = {l:?}, direction = {d:?}, weight = {w:?} }}");
     let resisted =
         |text: String| text.replace("sigma = 1\n", "sigma = 1\nsliding = \"resisted\"\n");
+    let pairs =
+        super::landmarks::pairs(t, LANDMARKS, LANDMARK_SIGMA, LANDMARK_SEED + LANDMARKS as u64);
+    super::landmarks::write_pairs(&dir.join("landmarks.csv"), &pairs)?;
+    let fitted = format!(
+        "[[measurement]]\nlandmarks = \"landmarks.csv\"\nnset = \"CRANIOTOMY\"\n\
+         sigma = {LANDMARK_SIGMA:?}\n"
+    );
+    let beside =
+        format!("[[measurement]]\nlandmarks = \"landmarks.csv\"\nsigma = {LANDMARK_SIGMA:?}\n");
+    let spline = "[[boundary]]\nnset = \"CRANIOTOMY\"\nlandmarks = \"landmarks.csv\"\n\
+                  max_extrapolation = 20.0\n";
+    let off = scene_table(load, c, true, None);
     Ok(vec![
         ("prior at the true level", with(&model, scene_table(load, c, false, None))),
         ("prior, level and direction off", with(&model, scene_table(load, c, true, None))),
@@ -178,6 +197,12 @@ fn scenes(
         (
             "scan, level, direction and weight estimated",
             with(&scan, scene_table(load, c, true, Some(&estimate_w))),
+        ),
+        ("landmarks, gravity off", with(&model, format!("{fitted}\n{off}"))),
+        ("spline of the landmarks, gravity off", with(&model, format!("{spline}\n{off}"))),
+        (
+            "scan and landmarks, level and direction estimated",
+            with(&scan, format!("{beside}\n{}", scene_table(load, c, true, Some(&estimate)))),
         ),
     ])
 }

@@ -53,7 +53,7 @@ pub fn pairs(t: &Truth, n: usize, sigma: f64, seed: u64) -> Vec<(Point3<f64>, Po
 }
 
 /// Writes `pairs` as a landmarks CSV.
-fn write_pairs(path: &Path, pairs: &[(Point3<f64>, Point3<f64>)]) -> Result<(), String> {
+pub fn write_pairs(path: &Path, pairs: &[(Point3<f64>, Point3<f64>)]) -> Result<(), String> {
     let mut s = String::from("x,y,z,x2,y2,z2\n");
     for (a, b) in pairs {
         writeln!(s, "{:?},{:?},{:?},{:?},{:?},{:?}", a.x, a.y, a.z, b.x, b.y, b.z).unwrap();
