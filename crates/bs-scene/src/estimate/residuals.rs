@@ -34,7 +34,8 @@ impl Residuals {
     }
 }
 
-/// The residuals of the scans of `fits` against the reference `x` displaced by `u`.
+/// The residuals of the scans and landmarks of `fits` against the reference `x` displaced
+/// by `u`.
 pub(crate) fn residuals(fits: &mut Fits, x: &[Point3<f64>], u: &[Vector3<f64>]) -> Residuals {
     let positions: Vec<Point3<f64>> = x.iter().zip(u).map(|(x, d)| x + d).collect();
     let (mut r, mut w, mut matched, mut landmark) =
