@@ -111,7 +111,7 @@ pub use model::{Model, ModelError, ModelOptions};
 pub use newton::{Newton, NewtonError, NewtonInfo, NewtonParams};
 pub use nk::{
     ContinuationParams, LineSearchParams, NewtonKrylov, NewtonKrylovError, NewtonKrylovInfo,
-    NewtonKrylovParams, Preparation, WarmStart,
+    NewtonKrylovParams, Preparation, Response, ResponseInfo, WarmStart,
 };
 pub use post::ElementMeasures;
 pub use solver::{

@@ -71,6 +71,9 @@ pub(crate) struct Linearisation<'a> {
     pub springs: &'a [(usize, f64)],
     pub cons: &'a Constraints,
     pub tl: &'a Multilevel,
+    /// The force change whose displacement response is sought (`None`: the Newton step's
+    /// right-hand side `−Π (f + J u_p)`; [`super::response`]).
+    pub load: Option<&'a [Vector3<f64>]>,
     /// Whether GMRES ends after a restart cycle that stalled: under a body force alone
     /// (nothing prescribed moves), where a brain that floats before the skull holds it has
     /// a nearly singular tangent and restarted GMRES stalls (docs/decisions.md).
@@ -94,7 +97,9 @@ pub(crate) fn solve(
     // Right-hand side −Π (f + J u_p).
     let pmax = max_abs(lin.particular);
     let umax = max_abs(u);
-    if pmax > 0.0 {
+    if let Some(load) = lin.load {
+        b.rhs.par_iter_mut().zip(load.par_iter()).for_each(|(r, l)| *r = *l);
+    } else if pmax > 0.0 {
         let h = 1e-7 * (1.0 + umax) / pmax;
         b.up.par_iter_mut()
             .zip(u.par_iter())

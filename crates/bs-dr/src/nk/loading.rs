@@ -122,6 +122,7 @@ pub(crate) fn direction(
         springs: &it.springs,
         cons: &it.cons,
         tl: it.pre.get(),
+        load: None,
         stall_exit: pb.load == 0.0 && !pb.loads.forces().is_empty(),
     };
     let max = pb.params.max_linear_iterations;

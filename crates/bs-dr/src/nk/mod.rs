@@ -74,6 +74,7 @@ mod outcome;
 mod params;
 mod problem;
 mod refresh;
+mod response;
 mod termination;
 
 use std::time::Instant;
@@ -94,6 +95,7 @@ use crate::solver::{Breakdown, LoadFailure, Progress, Solution, SolveError, Solv
 
 pub use self::outcome::{NewtonKrylovError, NewtonKrylovInfo};
 pub use self::params::{ContinuationParams, LineSearchParams, NewtonKrylovParams};
+pub use self::response::{Response, ResponseInfo};
 
 /// The semismooth Newton–Krylov solver (see the module documentation).
 #[derive(Debug, Clone, Copy, Default)]

@@ -124,3 +124,50 @@ fn dr_and_newton_carry_the_weight_to_the_same_answer_as_newton_krylov() {
     assert!(diff(&nk, &dr) < 1e-5, "DR: {:e}", diff(&nk, &dr));
     assert!(diff(&nk, &newton) < 1e-5, "Newton: {:e}", diff(&nk, &newton));
 }
+
+/// The column's loads with its weight (and the fluid's) scaled by `factor`.
+fn loads_scaled(mesh: &Mesh, model: &Model, factor: f64) -> Loads {
+    let mut l = loads(mesh, model, true);
+    let forces = l.forces().iter().map(|f| f * factor).collect();
+    l.set_forces(forces).unwrap();
+    l
+}
+
+#[test]
+fn the_linear_response_to_more_weight_is_the_difference_of_two_solves() {
+    // At the settled column (2.7 % strain, the large-strain law's tangent), the response to
+    // 1 % more weight through the converged tangent against the central difference of two
+    // nonlinear solves at ±1 % (second-order accurate: ~1e-4 of the response; the solves'
+    // tolerance 1e-10 of the load scale adds 4e-9 mm / 0.01).
+    let params = NewtonKrylovParams { tolerance: 1e-10, ..Default::default() };
+    let nk = NewtonKrylov::new(params);
+    for tech in [Tech::T4, Tech::T4Anp] {
+        let (mesh, model) = column(tech, 8);
+        let at = |f: f64| {
+            let l = loads_scaled(&mesh, &model, f);
+            let prep = nk.prepare(&model, &l).unwrap();
+            nk.solve_prepared(&model, &l, &prep, &mut NoContact, &mut |_| {}).unwrap().displacements
+        };
+        let (u, up, down) = (at(1.0), at(1.01), at(0.99));
+        let loads = loads_scaled(&mesh, &model, 1.0);
+        let prep = nk.prepare(&model, &loads).unwrap();
+        // The residual is internal minus dead forces: 1 % more weight lowers it by 1 % of them.
+        let change: Vec<Vector3<f64>> = loads.forces().iter().map(|f| -f * 0.01).collect();
+        let mut response = vec![Vector3::zeros(); u.len()];
+        let info = nk
+            .with_response(&model, &loads, &prep, &u, &mut NoContact, &mut bs_dr::NoData, |r| {
+                r.solve(&change, &mut response, 1e-10)
+            })
+            .unwrap()
+            .unwrap();
+        assert!(info.converged, "{tech:?}: {info:?}");
+        let scale = response.iter().fold(0.0f64, |m, v| m.max(v.amax()));
+        let diff = response
+            .iter()
+            .zip(up.iter().zip(&down))
+            .fold(0.0f64, |m, (r, (a, b))| m.max((r - (a - b) / 2.0).amax()));
+        // The response is about 1 % of the settlement (2 mm): 0.02 mm.
+        assert!(scale > 0.015, "{tech:?}: {scale}");
+        assert!(diff < 1e-3 * scale, "{tech:?}: {diff:e} of {scale:e}");
+    }
+}
