@@ -46,8 +46,14 @@ pub fn run(out: &Path, from_image: bool) -> Result<ExitCode, Box<dyn std::error:
     } else {
         run::default_scene()
     };
-    let code =
-        run::run(&run::RunOptions { scene, out: out.to_path_buf(), threads: None, quiet: false })?;
+    let code = run::run(&run::RunOptions {
+        scene,
+        out: out.to_path_buf(),
+        threads: None,
+        quiet: false,
+        uncertainty: None,
+        uncertainty_grid: None,
+    })?;
     if code != ExitCode::SUCCESS {
         return Ok(code);
     }

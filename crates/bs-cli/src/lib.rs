@@ -12,6 +12,7 @@ pub mod mesh;
 pub mod run;
 pub mod serve;
 pub mod sweep;
+pub mod uncertainty;
 pub mod warp;
 
 /// Writes `text` to standard output. A closed pipe (`brainshift inspect x | head`) is not an

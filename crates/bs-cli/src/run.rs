@@ -23,6 +23,22 @@ pub struct RunOptions {
     pub threads: Option<usize>,
     /// No progress output.
     pub quiet: bool,
+    /// Samples of the fit's uncertainty (`None`: not sampled).
+    pub uncertainty: Option<usize>,
+    /// The grid of uncertainty.nii.gz (an image; `None`: around the deformed brain).
+    pub uncertainty_grid: Option<PathBuf>,
+}
+
+/// `--uncertainty N`: a whole number of samples, at least 2.
+pub fn parse_samples(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<i64>() {
+        Ok(n) if n >= 2 => Ok(n as usize),
+        Ok(n) => Err(format!(
+            "{n} samples: give at least 2 (σ is a root mean square over the samples; 32 give \
+             it to about 13 %)"
+        )),
+        Err(_) => Err(format!("'{s}' is not a whole number of samples (e.g. 32)")),
+    }
 }
 
 /// Progress display: a spinner on a terminal, a plain line every few seconds otherwise.
@@ -121,6 +137,19 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
     let prepared = Prepared::load(&opts.scene)?;
     let mut run = Run::prepare(prepared)?;
     stop_if_interrupted("during preparation");
+    if opts.uncertainty.is_some() {
+        bs_scene::uncertainty::check(&run)?;
+        if let Some(g) = &opts.uncertainty_grid
+            && !g.is_file()
+        {
+            return Err(format!(
+                "--uncertainty-grid {}: no such image (give the pre-operative image whose \
+                 grid the σ volume takes, or leave it out for a 1 mm grid around the brain)",
+                g.display()
+            )
+            .into());
+        }
+    }
     let threads = rayon::current_num_threads();
     let (p, c) = (&run.prepared, &run.composed);
     if !opts.quiet {
@@ -158,10 +187,20 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
         reporter.update(pr)
     });
     reporter.finish();
-    let solved = solved?;
+    let mut solved = solved?;
+    let sigma_image = match opts.uncertainty {
+        Some(n) => Some(crate::uncertainty::sample(&mut run, &mut solved, n, opts)?),
+        None => None,
+    };
     let ctx = RunContext { total_seconds: started.elapsed().as_secs_f64(), threads };
     let mut report = report(&run, &solved, ctx);
     let written = write_outputs(&opts.out, &run.prepared, &solved, &report)?;
+    let sigma_file = opts.out.join(crate::uncertainty::UNCERTAINTY_NII);
+    match &sigma_image {
+        Some(image) => image.write(&sigma_file)?,
+        None if sigma_file.is_file() => std::fs::remove_file(&sigma_file)?,
+        None => {}
+    }
     report.total_seconds = started.elapsed().as_secs_f64();
     if !opts.quiet {
         let u_unit = run.prepared.scene.units.symbol();
@@ -206,6 +245,14 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
                 .collect::<String>(),
             written.residuals.as_ref().map(|r| format!(", {}", r.display())).unwrap_or_default(),
         ));
+        if let (Some(u), Some(path)) = (&report.uncertainty, &written.uncertainty) {
+            crate::emit(&format!(
+                "{}; wrote {}, {}\n",
+                crate::uncertainty::line(u, u_unit),
+                path.display(),
+                sigma_file.display()
+            ));
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -86,6 +86,21 @@ pub struct RigidFit {
     pub rms_after: f64,
     /// ICP iterations taken.
     pub iterations: usize,
+    /// The centre the motion's rotation is about (the bone points' mean), and the posterior
+    /// covariance of a small motion `ξ = (δω, δt)` after it, `x ↦ x + δω × (x − c) + δt`
+    /// (radians and length units): the inverse of the Gauss–Newton matrix at the answer
+    /// (the inlier points' information plus the prior's). What the noise of the bone
+    /// points leaves undetermined of the correction ([`RigidFit::perturbed`]).
+    pub centre: Point3<f64>,
+    pub covariance: Matrix6<f64>,
+}
+
+impl RigidFit {
+    /// The corrected point `x` moved further by the small motion `xi` (see `covariance`).
+    pub fn perturbed(&self, xi: &Vector6<f64>, x: &Point3<f64>) -> Point3<f64> {
+        let (omega, t) = (Vector3::new(xi[0], xi[1], xi[2]), Vector3::new(xi[3], xi[4], xi[5]));
+        x + omega.cross(&(x - self.centre)) + t
+    }
 }
 
 /// Why a rigid fit cannot be made.
@@ -181,20 +196,9 @@ pub fn fit_rigid(
     for _ in 0..params.iterations {
         iterations += 1;
         let s = robust::scale(current.iter().map(|p| p.residual), params.sigma, &mut scratch);
-        let (mut a, mut b) = (Matrix6::from_diagonal(&prior), Vector6::zeros());
+        let (a, mut b) = normal_equations(&current, &prior, s, params.sigma);
         // The prior pulls the whole motion, not the increment, towards zero.
         b -= prior.component_mul(&Vector6::new(omega.x, omega.y, omega.z, t.x, t.y, t.z));
-        let inv_s2 = 1.0 / (params.sigma * params.sigma);
-        for p in &current {
-            let w = robust::tukey(p.residual, s) * inv_s2;
-            if w == 0.0 {
-                continue;
-            }
-            let j = p.arm.cross(&p.normal);
-            let row = Vector6::new(j.x, j.y, j.z, p.normal.x, p.normal.y, p.normal.z);
-            a += row * row.transpose() * w;
-            b -= row * (w * p.residual);
-        }
         let Some(step) = a.cholesky().map(|c| c.solve(&b)) else { break };
         let d_omega = Vector3::new(step[0], step[1], step[2]);
         let d_t = Vector3::new(step[3], step[4], step[5]);
@@ -212,7 +216,12 @@ pub fn fit_rigid(
     }
     let s = robust::scale(current.iter().map(|p| p.residual), params.sigma, &mut scratch);
     let (rms_after, inliers) = rms_inside(&current, s);
+    let (a, _) = normal_equations(&current, &prior, s, params.sigma);
+    let covariance =
+        a.try_inverse().unwrap_or_else(|| Matrix6::from_diagonal(&prior.map(|p| 1.0 / p)));
     Ok(RigidFit {
+        centre,
+        covariance,
         rigid: motion,
         matched: current.len(),
         inliers,
@@ -220,6 +229,29 @@ pub fn fit_rigid(
         rms_after,
         iterations,
     })
+}
+
+/// The Gauss–Newton matrix (the prior's diagonal `prior` plus the robustly weighted
+/// points' information at scale `s`) and the right-hand side of the points' residuals.
+fn normal_equations(
+    pairs: &[Pair],
+    prior: &Vector6<f64>,
+    s: f64,
+    sigma: f64,
+) -> (Matrix6<f64>, Vector6<f64>) {
+    let (mut a, mut b) = (Matrix6::from_diagonal(prior), Vector6::zeros());
+    let inv_s2 = 1.0 / (sigma * sigma);
+    for p in pairs {
+        let w = robust::tukey(p.residual, s) * inv_s2;
+        if w == 0.0 {
+            continue;
+        }
+        let j = p.arm.cross(&p.normal);
+        let row = Vector6::new(j.x, j.y, j.z, p.normal.x, p.normal.y, p.normal.z);
+        a += row * row.transpose() * w;
+        b -= row * (w * p.residual);
+    }
+    (a, b)
 }
 
 fn max_arm(pairs: &[Pair]) -> f64 {
@@ -280,6 +312,55 @@ mod tests {
             .map(|(t, s)| (fit.rigid.apply(s) - t).norm())
             .fold(0.0, f64::max);
         assert!(err < 1.5, "{err}");
+    }
+
+    /// The reported covariance against the spread of the fit over fresh noise (brute
+    /// force): a point's correction varies as its linearised posterior says.
+    #[test]
+    fn the_covariance_is_the_spread_of_the_fit_over_the_noise() {
+        let patch = skull();
+        let mut rng = bs_mesh::rng::SplitMix64::new(3);
+        let truth: Vec<Point3<f64>> =
+            patch.vertices().iter().filter(|v| v.z > 40.0).copied().collect();
+        let p = params();
+        let probe = Point3::new(20.0, -10.0, 60.0);
+        let (runs, mut fits, mut at) = (300, Vec::new(), Vec::new());
+        for _ in 0..runs {
+            let noisy: Vec<Point3<f64>> = truth
+                .iter()
+                .map(|q| q + Vector3::new(rng.normal(), rng.normal(), rng.normal()) * p.sigma)
+                .collect();
+            let fit = fit_rigid(&noisy, &patch, &p).unwrap();
+            at.push(fit.rigid.apply(&probe));
+            fits.push(fit);
+        }
+        let mean = at.iter().map(|x| x.coords).sum::<Vector3<f64>>() / runs as f64;
+        // Isotropic noise: its component along each normal has the variance σ² the
+        // covariance assumes. The variance of the probe's correction along each axis, both ways: over the runs,
+        // and from the first fit's covariance (ξ ↦ δω × (x − c) + δt is linear in ξ).
+        let f = &fits[0];
+        let arm = f.rigid.apply(&probe) - f.centre;
+        let g = nalgebra::Matrix3x6::from_fn(|i, k| {
+            if k < 3 {
+                let mut e = Vector3::zeros();
+                e[k] = 1.0;
+                e.cross(&arm)[i]
+            } else {
+                if i == k - 3 { 1.0 } else { 0.0 }
+            }
+        });
+        let predicted = g * f.covariance * g.transpose();
+        for i in 0..3 {
+            let spread =
+                at.iter().map(|x| (x.coords[i] - mean[i]).powi(2)).sum::<f64>() / (runs - 1) as f64;
+            // 300 runs: the sample variance within about 3 × √(2/300) = 25 % of its value.
+            let ratio = spread / predicted[(i, i)];
+            assert!(
+                (0.75..1.33).contains(&ratio),
+                "axis {i}: {spread:e} vs {:e}",
+                predicted[(i, i)]
+            );
+        }
     }
 
     #[test]

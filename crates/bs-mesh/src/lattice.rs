@@ -262,6 +262,11 @@ impl LatticeLocation {
     }
 
     /// `Σ w_c values[node c]`: a nodal quantity interpolated in tetrahedron `t`.
+    pub fn interpolate_scalar(&self, t: usize, weights: &[f64; 4], values: &[f64]) -> f64 {
+        self.tets[t].iter().zip(weights).map(|(&a, w)| values[a] * w).sum()
+    }
+
+    /// The point of `values` (one per node) at barycentric `weights` in tetrahedron `t`.
     pub fn interpolate(&self, t: usize, weights: &[f64; 4], values: &[Point3<f64>]) -> Point3<f64> {
         let n = self.tets[t];
         Point3::from(

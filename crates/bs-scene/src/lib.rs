@@ -60,6 +60,7 @@ pub mod scene;
 pub mod session;
 pub mod skull_contact;
 pub mod solve;
+pub mod uncertainty;
 pub mod verify;
 
 pub use bs_dr::Progress;

@@ -17,6 +17,7 @@ use serde::Serialize;
 use crate::SceneError;
 use crate::prepare::Prepared;
 use crate::run::{Run, Solved};
+use crate::uncertainty::UncertaintyReport;
 
 /// The machine-readable summary written to report.json, and read back typed
 /// ([`RunReport::read`]: registration and sweeps). A key an older report lacks reads as its
@@ -118,6 +119,9 @@ pub struct RunReport {
     /// What a resection removed (absent without one).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub resected: Option<ResectedReport>,
+    /// σ of the fitted displacement (`run --uncertainty N`; absent without).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<crate::uncertainty::UncertaintyReport>,
 }
 
 impl RunReport {
@@ -161,6 +165,8 @@ pub struct Written {
     pub surfaces: Vec<(String, PathBuf, PathBuf)>,
     /// residuals.csv (one row per measured point), when the scene has measurements.
     pub residuals: Option<PathBuf>,
+    /// uncertainty.csv (σ per node), when the run sampled it.
+    pub uncertainty: Option<PathBuf>,
 }
 
 /// Timing and threading of a run that only the front end knows.
@@ -223,6 +229,7 @@ pub fn report(run: &Run, s: &Solved, ctx: RunContext) -> RunReport {
             nodes_held: r.orphans.len(),
             wall_triangles: r.walls.len(),
         }),
+        uncertainty: s.uncertainty.as_ref().map(|u| UncertaintyReport::of(run, u)),
     }
 }
 
@@ -239,11 +246,15 @@ pub fn write_outputs(
         move |e: &dyn std::fmt::Display| SceneError::Write { path, message: e.to_string() }
     };
     std::fs::create_dir_all(out).map_err(|e| io(out)(&format!("cannot create the folder: {e}")))?;
+    let mut point = vec![
+        Field::new("displacement", 3, u.iter().flat_map(|d| [d.x, d.y, d.z]).collect()),
+        Field::new("in_contact", 1, s.verification.in_contact.clone()),
+    ];
+    if let Some(un) = &s.uncertainty {
+        point.push(Field::new("sigma", 1, (0..u.len()).map(|a| un.total(a)).collect()));
+    }
     let fields = Fields {
-        point: vec![
-            Field::new("displacement", 3, u.iter().flat_map(|d| [d.x, d.y, d.z]).collect()),
-            Field::new("in_contact", 1, s.verification.in_contact.clone()),
-        ],
+        point,
         cell: vec![
             Field::new("von_mises", 1, s.verification.measures.von_mises.clone()),
             Field::new("J", 1, s.verification.measures.volume_ratio.clone()),
@@ -259,6 +270,7 @@ pub fn write_outputs(
         report: out.join("report.json"),
         surfaces: Vec::new(),
         residuals: (!s.residuals.is_empty()).then(|| out.join("residuals.csv")),
+        uncertainty: s.uncertainty.as_ref().map(|_| out.join(UNCERTAINTY_CSV)),
     };
     for name in &p.scene.output.surfaces {
         let set = p.mesh.element_set(name).ok_or_else(|| SceneError::Write {
@@ -306,10 +318,42 @@ pub fn write_outputs(
         // An earlier fit's residuals would be taken for this run's.
         std::fs::remove_file(&residuals).map_err(|e| io(&residuals)(&e))?;
     }
+    write_uncertainty(out, p, s.uncertainty.as_ref())?;
     let json = serde_json::to_string_pretty(report).map_err(|e| io(&written.report)(&e))?;
     write_atomic(&written.report, |w| writeln!(w, "{json}"))
         .map_err(|e| io(&written.report)(&e))?;
     Ok(written)
+}
+
+/// The file of σ per node in a result folder.
+pub const UNCERTAINTY_CSV: &str = "uncertainty.csv";
+
+/// uncertainty.csv (`node_id,sx,sy,sz,s`: σ per axis and in total, mesh units) into `out`,
+/// or an earlier run's removed (it would be taken for this one's).
+fn write_uncertainty(
+    out: &Path,
+    p: &Prepared,
+    u: Option<&crate::uncertainty::Uncertainty>,
+) -> Result<(), SceneError> {
+    let path = out.join(UNCERTAINTY_CSV);
+    let err = |e: &dyn std::fmt::Display| SceneError::Write {
+        path: path.clone(),
+        message: e.to_string(),
+    };
+    let Some(u) = u else {
+        if path.is_file() {
+            std::fs::remove_file(&path).map_err(|e| err(&e))?;
+        }
+        return Ok(());
+    };
+    write_atomic(&path, |w| {
+        writeln!(w, "node_id,sx,sy,sz,s")?;
+        for (a, (id, s)) in p.mesh.node_ids.iter().zip(&u.sigma).enumerate() {
+            writeln!(w, "{id},{:?},{:?},{:?},{:?}", s[0], s[1], s[2], u.total(a))?;
+        }
+        Ok(())
+    })
+    .map_err(|e| err(&e))
 }
 
 /// The deformed boundary surface of the element set `set` of `mesh` under the nodal

@@ -44,6 +44,8 @@ pub struct Solved {
     pub residuals: Vec<PointRow>,
     /// The gravity solved with and what was estimated of it (`None` without `[gravity]`).
     pub gravity: Option<crate::estimate::GravityReport>,
+    /// σ of the fitted answer, when asked for ([`crate::uncertainty::sample`]).
+    pub uncertainty: Option<crate::uncertainty::Uncertainty>,
 }
 
 impl Solved {
@@ -71,6 +73,7 @@ impl Solved {
                 data_used: composed.fit.is_some(),
                 ..crate::estimate::GravityReport::of(g)
             }),
+            uncertainty: None,
         }
     }
 }

@@ -54,7 +54,7 @@ impl SolveSettings {
 
 /// The Newton–Krylov solver for settings `s`. The scene's tolerance is a length
 /// ([`ToleranceUnit::Length`]), for every solver.
-fn newton_krylov(s: &SolveSettings) -> NewtonKrylov {
+pub(crate) fn newton_krylov(s: &SolveSettings) -> NewtonKrylov {
     let defaults = NewtonKrylovParams::default();
     NewtonKrylov::new(NewtonKrylovParams {
         tolerance: s.tolerance,

@@ -865,3 +865,67 @@ fn landmarks_beside_a_scan_need_an_estimate_and_no_set() {
     assert!(m.contains("[[measurement]] #2 nset") && m.contains("remove nset"), "{m}");
     assert!(refused("estimate = { level = 15.0 }", "").is_empty());
 }
+
+/// The plane's points of [`plane_points`] with isotropic Gaussian noise `sigma` per axis.
+fn noisy_plane(z: f64, sigma: f64, rng: &mut bs_mesh::rng::SplitMix64) -> String {
+    let mut s = String::from("x,y,z\n");
+    for j in 0..=56 {
+        for i in 0..=56 {
+            let (x, y) = (i as f64 - 8.0, j as f64 - 8.0);
+            let [a, b, c] = [rng.normal(), rng.normal(), rng.normal()].map(|v| v * sigma);
+            s += &format!("{},{},{}\n", x + a, y + b, z + c);
+        }
+    }
+    s
+}
+
+/// σ from the fit's linearised posterior is the spread of the whole nonlinear fit over
+/// fresh scans (brute force: 40 fits, each of its own noisy scan of the plane 4 mm below
+/// the box's top).
+#[test]
+fn the_sampled_sigma_is_the_spread_of_the_fit_over_fresh_scans() {
+    let dir = tmp("sigma");
+    let measurement = "[[measurement]]\npoints = \"scan.csv\"\nnset = \"ZMAX\"\nsigma = 0.5\nsliding = \"free\"\n";
+    let mut rng = bs_mesh::rng::SplitMix64::new(11);
+    let (fits, mut answers) = (40, Vec::new());
+    for _ in 0..fits {
+        std::fs::write(dir.join("scan.csv"), noisy_plane(36.0, 0.5, &mut rng)).unwrap();
+        let path = scene(&dir, measurement);
+        let mut run = Run::prepare(Prepared::load(&path).unwrap()).unwrap();
+        answers.push(run.solve(&mut |_| {}).unwrap().solution.displacements);
+    }
+    let n = answers[0].len();
+    let mean: Vec<Vector3<f64>> =
+        (0..n).map(|a| answers.iter().map(|u| u[a]).sum::<Vector3<f64>>() / fits as f64).collect();
+    let spread = |a: usize| {
+        let v = answers.iter().map(|u| (u[a] - mean[a]).norm_squared()).sum::<f64>();
+        (v / (fits - 1) as f64).sqrt()
+    };
+    // The last scan's fit, sampled.
+    let path = scene(&dir, measurement);
+    let mut run = Run::prepare(Prepared::load(&path).unwrap()).unwrap();
+    let solved = run.solve(&mut |_| {}).unwrap();
+    let params = bs_scene::uncertainty::UncertaintyParams { samples: 64, ..Default::default() };
+    let u = bs_scene::uncertainty::sample(&mut run, &solved, &params).unwrap();
+    assert_eq!(u.parts, ["scan noise"]);
+    let top: Vec<usize> = run.prepared.mesh.node_sets["ZMAX"].clone();
+    let (brute, sampled) =
+        top.iter().fold((0.0, 0.0), |(b, s), &a| (b + spread(a), s + u.total(a)));
+    // The noise moves the top by a few hundredths of a millimetre (the data average 41² points).
+    assert!(brute > 1e-3 * top.len() as f64, "{brute}");
+    // 40 fits and 64 samples: each estimate of σ within about 11 % and 9 % (1/√(2N)), their
+    // ratio within ±35 % at 2.5 standard deviations.
+    let ratio = sampled / brute;
+    assert!((0.7..1.4).contains(&ratio), "sampled {sampled:e} vs the fits' spread {brute:e}");
+}
+
+/// `--uncertainty` needs something fitted: a scene without measurements is refused,
+/// naming why.
+#[test]
+fn the_uncertainty_of_a_scene_without_a_fit_is_refused() {
+    let dir = tmp("sigma-none");
+    let path = scene(&dir, "[[boundary]]\nnset = \"ZMAX\"\ndisplacement = [0.0, 0.0, -2.0]\n");
+    let run = Run::prepare(Prepared::load(&path).unwrap()).unwrap();
+    let e = bs_scene::uncertainty::check(&run).unwrap_err().to_string();
+    assert!(e.contains("--uncertainty") && e.contains("fits nothing"), "{e}");
+}

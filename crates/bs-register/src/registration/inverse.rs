@@ -249,6 +249,19 @@ impl InverseMap {
         Some(self.location.interpolate(t, &w, &self.reference))
     }
 
+    /// A nodal quantity of the result (one value per node, e.g. σ) on the intra-operative
+    /// grid: at each voxel centre inside the deformed mesh, interpolated linearly in the
+    /// element holding it (the value of its reference point X(y)); zero outside the brain.
+    pub fn nodal(&self, values: &[f64]) -> Vec<f32> {
+        (0..self.grid.len())
+            .into_par_iter()
+            .map(|n| match self.location.locate(n) {
+                Some((t, w)) => self.location.interpolate_scalar(t, &w, values) as f32,
+                None => 0.0,
+            })
+            .collect()
+    }
+
     /// The pre-operative `image` (on this grid or any other in the same world frame)
     /// resampled into the intra-operative configuration on this grid: trilinear at X(y) inside
     /// the deformed mesh; every other voxel keeps the value of `keep` (the input on the same

@@ -22,8 +22,10 @@
 
 mod files;
 mod inverse;
+mod nodal;
 mod result;
 
 pub use files::*;
 pub use inverse::*;
+pub use nodal::*;
 pub use result::*;

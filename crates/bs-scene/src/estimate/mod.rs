@@ -77,6 +77,13 @@ pub struct GravityReport {
     pub data_used: bool,
     /// Why the estimate stopped early or the data could not be used (absent: neither).
     pub note: Option<String>,
+    /// The estimate in its own coordinates (level shift, two tilts in radians, weight
+    /// factor: those named) and their posterior covariance, row by row: what an
+    /// uncertainty's samples draw from ([`body_at`]). Not written to report.json.
+    #[serde(skip)]
+    pub theta: Vec<f64>,
+    #[serde(skip)]
+    pub covariance: Vec<Vec<f64>>,
 }
 
 /// One estimated parameter.
@@ -109,6 +116,8 @@ impl GravityReport {
             landmark_inliers: 0,
             data_used: false,
             note: None,
+            theta: Vec::new(),
+            covariance: Vec::new(),
         }
     }
 
@@ -452,8 +461,24 @@ fn report(u: &Unknowns, at: &Gravity, e: &Estimated, data_used: bool) -> Gravity
         landmark_inliers: e.res.landmark_inliers(),
         data_used,
         note: e.note.clone(),
+        theta: e.theta.clone(),
+        covariance: (0..e.cov.nrows()).map(|i| e.cov.row(i).iter().copied().collect()).collect(),
         ..GravityReport::of(at)
     }
+}
+
+/// The nodal dead loads of `p`'s gravity at the estimate of `g` moved by `offset` (in the
+/// estimate's coordinates, [`GravityReport::theta`]).
+pub(crate) fn body_at(
+    p: &Prepared,
+    model: &bs_dr::Model,
+    g: &GravityReport,
+    offset: &[f64],
+) -> Result<Vec<bs_mesh::Vector3<f64>>, SceneError> {
+    let gravity = p.scene.gravity.as_ref().expect("an estimate has a [gravity] table");
+    let unknowns = Unknowns::new(gravity, &gravity.estimate.expect("an estimate"));
+    let theta: Vec<f64> = g.theta.iter().zip(offset).map(|(t, d)| t + d).collect();
+    dead_loads(p, model, Some(&unknowns.gravity_at(&theta)))
 }
 
 #[cfg(test)]

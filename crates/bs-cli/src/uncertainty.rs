@@ -1,0 +1,58 @@
+//! `run --uncertainty N`: σ of the fitted answer sampled after the solve
+//! (`bs_scene::uncertainty`), as report.json's section and uncertainty.csv (bs-scene) and as
+//! a float32 volume of the intra-operative configuration (bs-register), made before anything
+//! is written.
+
+use bs_register::registration::{NodalImage, RunResult};
+use bs_scene::uncertainty::{UncertaintyParams, UncertaintyReport};
+use bs_scene::{Run, SceneError, Solved};
+
+use crate::run::RunOptions;
+
+/// The σ volume's file in a result folder.
+pub const UNCERTAINTY_NII: &str = "uncertainty.nii.gz";
+
+/// Samples σ of `solved` into it and returns its volume (total σ in mm).
+pub fn sample(
+    run: &mut Run,
+    solved: &mut Solved,
+    samples: usize,
+    opts: &RunOptions,
+) -> Result<NodalImage, SceneError> {
+    if !opts.quiet {
+        eprintln!(
+            "uncertainty: {samples} samples of the data's noise through the converged tangent…"
+        );
+    }
+    let params = UncertaintyParams { samples, ..UncertaintyParams::default() };
+    let u = bs_scene::uncertainty::sample(run, solved, &params)?;
+    let p = &run.prepared;
+    let mm = p.scene.units.metres() / 1e-3;
+    let totals: Vec<f64> = (0..u.sigma.len()).map(|a| u.total(a) * mm).collect();
+    let result = RunResult::new(
+        &opts.out,
+        p.mesh.clone(),
+        solved.solution.displacements.clone(),
+        p.scene.space.space(),
+        p.scene.units,
+    )?;
+    let image = NodalImage::new(&result, &totals, opts.uncertainty_grid.as_deref())?;
+    solved.uncertainty = Some(u);
+    Ok(image)
+}
+
+/// The run line of the uncertainty (`u` the scene's length unit).
+pub fn line(r: &UncertaintyReport, u: &str) -> String {
+    let [x, y, z] = r.max_at;
+    format!(
+        "uncertainty from {} samples ({}) in {:.2} s, {} GMRES iterations: σ up to {:.3} {u} \
+         at node {} ({x:.1}, {y:.1}, {z:.1}), mean {:.3} {u}; the model's own error is not in it",
+        r.samples,
+        r.parts.join(", "),
+        r.seconds,
+        r.iterations,
+        r.max_sigma,
+        r.max_node,
+        r.mean_sigma
+    )
+}

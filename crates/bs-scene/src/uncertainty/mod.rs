@@ -1,0 +1,248 @@
+//! How far to trust a fitted answer: σ of the fitted displacement per node, from the
+//! fit's linearised posterior (docs/uncertainty.md).
+//!
+//! Each sample draws what the fit was not told exactly ([`draws`]: every scan point's
+//! noise, the rigid correction that noise leaves in the bone points, gravity's estimated
+//! parameters from their posterior covariance) and pushes the change it makes to the
+//! equations through the converged tangent (one GMRES solve each, bs-dr's
+//! [`bs_dr::Response`]): the sample's deviation of the answer. The per-axis σ is the root
+//! mean square of the deviations; its relative error is about `1/√(2N)` for `N` samples
+//! (13 % at 32), whatever the correlation between nodes.
+//!
+//! What it captures: the data's noise and the load parameters the data left uncertain,
+//! through the model as fitted. What it cannot: the model's own error (a wrong
+//! constitutive law, a wrong fixed set, unmodelled heterogeneity), which docs/uncertainty.md
+//! measures against truths the fit does not know.
+
+mod draws;
+
+use std::time::Instant;
+
+use bs_mesh::Vector3;
+use bs_mesh::rng::SplitMix64;
+use serde::{Deserialize, Serialize};
+
+use crate::SceneError;
+use crate::run::{Run, Solved};
+use crate::scene::SolverKind;
+use draws::Draws;
+
+/// How the σ is sampled.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UncertaintyParams {
+    /// Samples (at least 2).
+    pub samples: usize,
+    /// The seed of the draws (the same seed gives the same σ).
+    pub seed: u64,
+    /// GMRES's relative residual per response. 1e-2 leaves σ 2.7 % (median over the
+    /// nodes) below its value at 1e-4 on fixtures/fit, at a third of the iterations: well
+    /// inside the sampling's own 13 % at 32 samples (docs/decisions.md).
+    pub rtol: f64,
+}
+
+impl Default for UncertaintyParams {
+    fn default() -> Self {
+        UncertaintyParams { samples: 32, seed: 1, rtol: 1e-2 }
+    }
+}
+
+/// σ of a fitted answer.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Uncertainty {
+    /// Per node: σ along x, y, z (scene frame, mesh units).
+    pub sigma: Vec<[f64; 3]>,
+    /// Per landmark of the scene (in file order): σ of its material point's displacement.
+    pub landmarks: Vec<[f64; 3]>,
+    /// What the samples drew ([`UncertaintyReport::parts`]).
+    pub parts: Vec<String>,
+    pub samples: usize,
+    /// GMRES iterations of all responses, and the wall time of the sampling (seconds).
+    pub iterations: usize,
+    pub seconds: f64,
+}
+
+impl Uncertainty {
+    /// The total σ at node `a`: `√(σx² + σy² + σz²)`.
+    pub fn total(&self, a: usize) -> f64 {
+        let [x, y, z] = self.sigma[a];
+        (x * x + y * y + z * z).sqrt()
+    }
+}
+
+/// report.json's `uncertainty`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct UncertaintyReport {
+    /// Samples, GMRES iterations of their responses, and seconds beyond the fit.
+    pub samples: usize,
+    pub iterations: usize,
+    pub seconds: f64,
+    /// What the samples drew: `scan noise`, `rigid correction from the bone points' noise`,
+    /// `gravity's estimated parameters`. The model's own error is not among them.
+    pub parts: Vec<String>,
+    /// The largest total σ (mesh units), the node id where it is and the node's reference
+    /// position (scene frame).
+    pub max_sigma: f64,
+    pub max_node: u64,
+    pub max_at: [f64; 3],
+    /// The mean total σ over the nodes.
+    pub mean_sigma: f64,
+    /// Per landmark (file order): σ along x, y, z and in total.
+    pub landmarks: Vec<LandmarkSigma>,
+}
+
+/// σ at one landmark.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LandmarkSigma {
+    /// Its row in the landmark files (from 0).
+    pub index: usize,
+    pub sigma: [f64; 3],
+    pub total: f64,
+}
+
+impl UncertaintyReport {
+    /// The report of `u` on the mesh of `run`.
+    pub fn of(run: &Run, u: &Uncertainty) -> UncertaintyReport {
+        let mesh = &run.prepared.mesh;
+        let n = u.sigma.len();
+        let (max_node, max_sigma) = (0..n)
+            .map(|a| (a, u.total(a)))
+            .fold((0, 0.0f64), |m, (a, s)| if s > m.1 { (a, s) } else { m });
+        let at = mesh.nodes.get(max_node).map_or([0.0; 3], |x| [x.x, x.y, x.z]);
+        let landmarks = u
+            .landmarks
+            .iter()
+            .enumerate()
+            .map(|(index, s)| LandmarkSigma {
+                index,
+                sigma: *s,
+                total: (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt(),
+            })
+            .collect();
+        UncertaintyReport {
+            samples: u.samples,
+            iterations: u.iterations,
+            seconds: u.seconds,
+            parts: u.parts.clone(),
+            max_sigma,
+            max_node: mesh.node_ids.get(max_node).copied().unwrap_or(max_node as u64 + 1),
+            max_at: at,
+            mean_sigma: if n == 0 {
+                0.0
+            } else {
+                (0..n).map(|a| u.total(a)).sum::<f64>() / n as f64
+            },
+            landmarks,
+        }
+    }
+}
+
+/// Whether `run`'s scene has something fitted that [`sample`] can draw: a scan, or
+/// gravity's estimated parameters. `Err` names what is missing.
+pub fn check(run: &Run) -> Result<(), SceneError> {
+    let p = &run.prepared;
+    let scans = p
+        .measurements
+        .iter()
+        .any(|m| matches!(m.data, crate::measure::MeasuredData::Surface { .. }));
+    if scans || crate::estimate::estimates(p) {
+        return Ok(());
+    }
+    let why = if p.measurements.is_empty() {
+        "the scene fits nothing (no [[measurement]]), so the answer has no fitted \
+         uncertainty; add a scan as a [[measurement]], or run without --uncertainty"
+    } else {
+        "landmarks fitted through a set are not sampled yet: add the scan they were taken \
+         with as a [[measurement]], or run without --uncertainty"
+    };
+    Err(SceneError::Scene { file: p.path.clone(), message: format!("--uncertainty: {why}") })
+}
+
+/// σ of `solved`, the answer of `run` ([`check`] first): `params.samples` draws pushed
+/// through the converged tangent (module documentation).
+pub fn sample(
+    run: &mut Run,
+    solved: &Solved,
+    params: &UncertaintyParams,
+) -> Result<Uncertainty, SceneError> {
+    check(run)?;
+    if params.samples < 2 {
+        return Err(SceneError::Scene {
+            file: run.prepared.path.clone(),
+            message: format!(
+                "--uncertainty {}: give at least 2 samples (32 gives σ to about 13 %)",
+                params.samples
+            ),
+        });
+    }
+    let started = Instant::now();
+    let settings = crate::solve::SolveSettings { kind: SolverKind::NewtonKrylov, ..run.settings };
+    let c = &mut run.composed;
+    crate::solve::prepare_solver(c, &settings)?;
+    let p = &run.prepared;
+    let u = &solved.solution.displacements;
+    let gravity = solved.gravity.as_ref();
+    let data_used = gravity.is_none_or(|g| g.data_used);
+    let fit = c.fit.as_ref().filter(|_| data_used);
+    let draws = Draws::new(p, &c.model, fit, u, gravity)?;
+    let anchors = landmark_anchors(p);
+    let n = u.len();
+    let mut m2 = vec![Vector3::<f64>::zeros(); n];
+    let mut l2 = vec![Vector3::<f64>::zeros(); anchors.len()];
+    let mut rng = SplitMix64::new(params.seed);
+    let (mut change, mut du) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]);
+    let mut data = c.fit.as_ref().filter(|_| data_used).map(|f| f.fits.clone());
+    let mut none = bs_dr::NoData;
+    let data: &mut dyn bs_dr::DataTerm = match &mut data {
+        Some(f) => f,
+        None => &mut none,
+    };
+    let mut no_contact = bs_dr::NoContact;
+    let contact: &mut dyn bs_dr::Contact = match &mut c.contact {
+        Some(sc) => sc,
+        None => &mut no_contact,
+    };
+    let prep = c.preparation.as_ref().expect("prepared above");
+    let nk = crate::solve::newton_krylov(&settings);
+    let model = &c.model;
+    let iterations = nk
+        .with_response(model, &c.loads, prep, u, contact, data, |r| {
+            for _ in 0..params.samples {
+                draws.residual_change(model, &mut rng, &mut change)?;
+                r.solve(&change, &mut du, params.rtol).map_err(bs_dr::SolveError::from)?;
+                m2.iter_mut().zip(&du).for_each(|(m, d)| *m += d.component_mul(d));
+                for (l, a) in l2.iter_mut().zip(&anchors) {
+                    let d: Vector3<f64> =
+                        a.nodes.iter().zip(&a.weights).map(|(&k, &w)| du[k] * w).sum();
+                    *l += d.component_mul(&d);
+                }
+            }
+            Ok::<usize, SceneError>(r.iterations())
+        })
+        .map_err(bs_dr::SolveError::from)??;
+    let rms = |v: &Vector3<f64>| {
+        let s = (v / params.samples as f64).map(f64::sqrt);
+        [s.x, s.y, s.z]
+    };
+    Ok(Uncertainty {
+        sigma: m2.iter().map(rms).collect(),
+        landmarks: l2.iter().map(rms).collect(),
+        parts: draws.parts(),
+        samples: params.samples,
+        iterations,
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}
+
+/// The material points of the scene's landmarks (file order; none without landmarks).
+fn landmark_anchors(p: &crate::prepare::Prepared) -> Vec<bs_fit::Anchor> {
+    p.measurements
+        .iter()
+        .filter_map(|m| match &m.data {
+            crate::measure::MeasuredData::Landmarks { anchors, .. } => {
+                Some(anchors.iter().map(|(_, a)| *a))
+            }
+            _ => None,
+        })
+        .flatten()
+        .collect()
+}
