@@ -8,13 +8,15 @@
 //! with the session's preparation from the reference state (bs-scene's `session/points.rs`
 //! says why); medians and their ratio. Gravity: fixtures/fit-gravity's fit estimating the
 //! level and direction with its scan against the forward solve of the same scene's gravity
-//! (`scene-forward.toml`). The table goes into docs/benchmarks.md between its `fit` markers.
+//! (`scene-forward.toml`). Uncertainty: the fixture's σ sampled after its fit (`run
+//! --uncertainty`'s default samples) against the fit. The table goes into docs/benchmarks.md between its `fit` markers.
 
 use std::fmt::Write as _;
 use std::time::Instant;
 
 use bs_mesh::{Point3, Vector3};
-use bs_scene::{BoundaryValues, Prepared, Session, Update};
+use bs_scene::uncertainty::UncertaintyParams;
+use bs_scene::{BoundaryValues, Prepared, Run, Session, Update};
 
 use bs_study::util::{replace_block, root};
 
@@ -48,6 +50,26 @@ fn truth_craniotomy(s: &Session) -> Result<Vec<Vector3<f64>>, String> {
     let nodes = s.set_nodes("CRANIOTOMY").map_err(|e| e.to_string())?;
     let p = &s.run().prepared.prescribed;
     Ok(nodes.iter().map(|&n| Vector3::from_fn(|c, _| p[n][c].unwrap_or(0.0))).collect())
+}
+
+/// The fixture's fit and its σ sampled after it (the default samples), each timed: medians
+/// of the fit's seconds, the sampling's and its GMRES iterations.
+fn uncertainty() -> Result<(f64, f64, f64), String> {
+    let (mut fit, mut sigma, mut gmres) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..REPEATS {
+        let p =
+            Prepared::load(&root().join("fixtures/fit/scene.toml")).map_err(|e| e.to_string())?;
+        let mut run = Run::prepare(p).map_err(|e| e.to_string())?;
+        let t = Instant::now();
+        let solved = run.solve(&mut |_| {}).map_err(|e| e.to_string())?;
+        fit.push(t.elapsed().as_secs_f64());
+        let t = Instant::now();
+        let u = bs_scene::uncertainty::sample(&mut run, &solved, &UncertaintyParams::default())
+            .map_err(|e| e.to_string())?;
+        sigma.push(t.elapsed().as_secs_f64());
+        gmres.push(u.iterations as f64);
+    }
+    Ok((median(fit), median(sigma), median(gmres)))
 }
 
 /// `cargo xtask bench fit`.
@@ -132,6 +154,15 @@ pub fn main() -> Result<(), String> {
         "| fixtures/fit-gravity: level and direction estimated with the scan, median of {REPEATS} | {gf:.2} (the forward gravity solve) | {ge:.2} ({:.0} solves) | {:.1}× |",
         median(solves),
         ge / gf
+    )
+    .unwrap();
+    let (fit_s, sigma_s, gmres) = uncertainty()?;
+    writeln!(
+        table,
+        "| fixtures/fit: σ from {} samples (`run --uncertainty {}`), median of {REPEATS} | {fit_s:.2} (the fit) | {sigma_s:.2} beyond it ({gmres:.0} GMRES iterations) | {:.1}× |",
+        UncertaintyParams::default().samples,
+        UncertaintyParams::default().samples,
+        sigma_s / fit_s
     )
     .unwrap();
     writeln!(

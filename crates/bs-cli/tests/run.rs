@@ -372,3 +372,50 @@ fn cube_simple_shear_matches_the_closed_form() {
         assert!(worst <= 1e-6 * gamma, "{element}: max error {worst:e}");
     }
 }
+
+/// `--uncertainty N` on the fitted fixture: σ per node in uncertainty.csv (zero where the
+/// brain stem is held, positive under the scan), the σ volume on a 1 mm RAS grid and
+/// report.json's section agree; fewer than two samples are refused before anything runs.
+#[test]
+fn the_uncertainty_of_the_fitted_fixture_is_written_three_ways() {
+    let dir = TempDir::new_in("run", "uncertainty");
+    let out = dir.0.join("out");
+    let scene = root().join("fixtures/fit/scene.toml");
+    let (s, o) = (scene.to_str().unwrap(), out.to_str().unwrap());
+    let refused = brainshift(&["run", s, "--out", o, "--uncertainty", "1", "--quiet"]);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(err.contains("1 samples: give at least 2"), "{err}");
+    assert!(!out.exists(), "nothing may be written");
+    let ran = brainshift(&["run", s, "--out", o, "--uncertainty", "8", "--quiet"]);
+    assert!(ran.status.success(), "{}", String::from_utf8_lossy(&ran.stderr));
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let u = &report["uncertainty"];
+    assert_eq!(u["samples"], 8);
+    let csv = std::fs::read_to_string(out.join("uncertainty.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("node_id,sx,sy,sz,s"));
+    let rows: HashMap<u64, [f64; 4]> = lines
+        .map(|l| {
+            let f: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+            (f[0] as u64, [f[1], f[2], f[3], f[4]])
+        })
+        .collect();
+    assert_eq!(rows.len() as u64, report["nodes"].as_u64().unwrap());
+    let mesh = bs_mesh::io::read_mesh(&root().join("fixtures/mni152-regions/brain.inp")).unwrap();
+    let id =
+        |set: &str| -> Vec<u64> { mesh.node_sets[set].iter().map(|&n| mesh.node_ids[n]).collect() };
+    assert!(id("FIXED").iter().all(|n| rows[n][3] == 0.0), "held nodes have no σ");
+    let scanned = id("CRANIOTOMY");
+    let mean = scanned.iter().map(|n| rows[n][3]).sum::<f64>() / scanned.len() as f64;
+    // σ 1 mm per point, hundreds of points: the surface under them is known to tenths.
+    assert!(mean > 0.01 && mean < 1.0, "{mean}");
+    let max = rows.values().map(|r| r[3]).fold(0.0, f64::max);
+    assert!((u["max_sigma"].as_f64().unwrap() - max).abs() < 1e-9 * (1.0 + max));
+    for r in rows.values() {
+        let total = (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();
+        assert!((total - r[3]).abs() < 1e-12 * (1.0 + total));
+    }
+    let nii = std::fs::metadata(out.join("uncertainty.nii.gz")).unwrap();
+    assert!(nii.len() > 1000);
+}

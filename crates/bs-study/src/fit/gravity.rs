@@ -152,6 +152,23 @@ pub struct Row {
     pub estimates: String,
 }
 
+/// The scene of the estimated row for the scan of `case`: the homogeneous model whose
+/// level and direction are off, both estimated with the scan (the uncertainty study's
+/// gravity fits).
+pub(super) fn estimated_scene(
+    t: &Truth,
+    load: &Load,
+    case: &Case,
+    dir: &Path,
+    mesh_dir: &str,
+) -> Result<String, String> {
+    let scan = homogeneous(&truth::write_scan(t, case, dir, mesh_dir)?);
+    let (l, d, _) = PRIOR;
+    let estimate = format!("{{ level = {l:?}, direction = {d:?} }}");
+    let g = scene_table(load, &t.centre, true, Some(&estimate));
+    Ok(scan.replace("[contact]", &format!("{g}\n[contact]")))
+}
+
 /// The rows' scenes: what each knows.
 fn scenes(
     t: &Truth,

@@ -15,6 +15,7 @@ mod gravity;
 mod landmarks;
 mod study;
 mod truth;
+mod uncertainty;
 
 use std::fmt::Write as _;
 use std::time::Instant;
@@ -140,6 +141,27 @@ Made by `cargo xtask fit gravity` in {:.0} s (2 threads).",
     Ok(())
 }
 
+/// `cargo xtask fit uncertainty [--quick]`: the calibration study of docs/uncertainty.md.
+pub fn run_uncertainty(quick: bool) -> Result<(), String> {
+    let started = Instant::now();
+    let rows = uncertainty::rows(quick)?;
+    let mut doc = uncertainty::table(&rows);
+    writeln!(
+        doc,
+        "\n{} samples per σ; made by `cargo xtask fit uncertainty` in {:.0} s (2 threads).",
+        uncertainty::SAMPLES,
+        started.elapsed().as_secs_f64()
+    )
+    .unwrap();
+    if quick {
+        print!("{doc}");
+        return Ok(());
+    }
+    crate::util::replace_block(&root().join("docs/uncertainty.md"), "uncertainty-study", &doc)?;
+    println!("wrote docs/uncertainty.md");
+    Ok(())
+}
+
 /// `cargo xtask fit ...`.
 pub fn main(args: &[String]) -> Result<(), String> {
     match args.first().map(String::as_str) {
@@ -147,6 +169,7 @@ pub fn main(args: &[String]) -> Result<(), String> {
         Some("study") => run_study(args.iter().any(|a| a == "--quick")),
         Some("gravity") => run_gravity(args.iter().any(|a| a == "--quick")),
         Some("gravity-fixture") => gravity::fixture(),
+        Some("uncertainty") => run_uncertainty(args.iter().any(|a| a == "--quick")),
         Some("try") => {
             // One case into target/fit-try (for exploring): SIGMA COVERAGE OUTLIERS MISALIGNMENT.
             let v: Vec<f64> = args[1..].iter().map(|a| a.parse().unwrap_or(0.0)).collect();
