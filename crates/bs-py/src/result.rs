@@ -211,6 +211,53 @@ impl RunResult {
         ))
     }
 
+    /// σ of the fitted displacement, as `brainshift run --uncertainty samples` samples it
+    /// (docs/uncertainty.md): a dict with `sigma` (n, 3) float64 (σ along x, y, z per node,
+    /// rows of `displacements`, the scene's unit), `total` (n,) and the keys of report.json's
+    /// `uncertainty` (samples, iterations, seconds, parts, max_sigma, max_node, max_at,
+    /// mean_sigma, landmarks). Raises BrainshiftError for a scene with nothing fitted,
+    /// ValueError for fewer than 2 samples.
+    #[pyo3(signature = (samples=32, seed=1))]
+    fn uncertainty<'py>(
+        &self,
+        py: Python<'py>,
+        samples: i64,
+        seed: u64,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        if samples < 2 {
+            return Err(PyValueError::new_err(format!(
+                "uncertainty(samples={samples}): give at least 2 samples (32 give σ to about 13 %)"
+            )));
+        }
+        let params = bs_scene::uncertainty::UncertaintyParams {
+            samples: samples as usize,
+            seed,
+            ..Default::default()
+        };
+        let (u, report) = py
+            .detach(|| {
+                let guard = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+                let (prepared, solved) = &*guard;
+                // The solver's preparation again (what `run` kept): the tangent at the answer
+                // needs it; the answer itself is this result's.
+                let mut run = Run::prepare(prepared.clone())?;
+                let u = bs_scene::uncertainty::sample(&mut run, solved, &params)?;
+                let report = bs_scene::uncertainty::UncertaintyReport::of(&run, &u);
+                Ok::<_, bs_scene::SceneError>((u, report))
+            })
+            .map_err(|e| scene_err(py, e))?;
+        let n = u.sigma.len();
+        let flat: Vec<f64> = u.sigma.iter().flatten().copied().collect();
+        let sigma = Array2::from_shape_vec((n, 3), flat)
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let total: Vec<f64> = (0..n).map(|a| u.total(a)).collect();
+        let json = serde_json::to_string(&report).expect("a report serialises");
+        let d: Bound<'py, PyDict> = from_json(py, &json)?.into_bound(py).cast_into()?;
+        d.set_item("sigma", sigma.into_pyarray(py))?;
+        d.set_item("total", PyArray1::from_vec(py, total))?;
+        Ok(d)
+    }
+
     fn __repr__(&self) -> String {
         format!("<brainshift.Result: {} nodes>", self.node_ids.len())
     }

@@ -201,3 +201,25 @@ def test_the_gil_is_released_during_a_solve(fixtures):
     during = [x for x in ticks if started <= x <= started + elapsed]
     # The other thread kept running throughout the solve.
     assert len(during) > elapsed / 0.005 / 4, (len(during), elapsed)
+
+
+def test_the_uncertainty_of_a_fit_is_what_the_cli_writes(fixtures, cli, tmp_path):
+    """Result.uncertainty() against `brainshift run --uncertainty` on the fitted fixture:
+    the same draws give the same σ per node (one process each, same seed and samples)."""
+    path = fixtures / "fit" / "scene.toml"
+    result = Scene(path).run()
+    u = result.uncertainty(samples=4)
+    assert u["samples"] == 4 and u["sigma"].shape == (len(result.node_ids), 3)
+    assert np.allclose(u["total"], np.sqrt((u["sigma"] ** 2).sum(axis=1)))
+    o = cli("run", path, "--out", tmp_path, "--uncertainty", "4", "--quiet")
+    assert o.returncode == 0, o.stderr
+    rows = np.loadtxt(tmp_path / "uncertainty.csv", delimiter=",", skiprows=1)
+    assert np.array_equal(rows[:, 0].astype(np.uint64), result.node_ids)
+    # Same scene, same draws; GMRES's reductions are deterministic, so the two agree to
+    # the printed digits (the CSV prints every digit).
+    assert np.allclose(rows[:, 1:4], u["sigma"], rtol=1e-9, atol=1e-12)
+    with pytest.raises(ValueError, match="at least 2 samples"):
+        result.uncertainty(samples=1)
+    nothing = Scene(fixtures / "cube" / "uniaxial-t4.toml").run()
+    with pytest.raises(BrainshiftError, match="--uncertainty: the scene fits nothing"):
+        nothing.uncertainty()

@@ -73,6 +73,7 @@ class Result:
     def surface(
         self,
     ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.int64], npt.NDArray[np.int64]]: ...
+    def uncertainty(self, samples: int = 32, seed: int = 1) -> Dict[str, Any]: ...
 
 class Image:
     """An image read once into memory (``read_image``): float32 values on its grid."""

@@ -44,7 +44,10 @@ impl<'a> Draws<'a> {
     ) -> Result<Self, SceneError> {
         let positions: Vec<Point3<f64>> =
             model.reference().iter().zip(u).map(|(x, d)| x + d).collect();
-        let fits = fit.map(|f| f.fits.clone()).unwrap_or_default();
+        let mut fits = fit.map(|f| f.fits.clone()).unwrap_or_default();
+        // The patches at the answer (where their neighbourhoods are sized), whatever state
+        // the composition's terms were left in.
+        fits.classify(&positions);
         let rigid = fit.map_or_else(Vec::new, |f| {
             f.rigid
                 .iter()
