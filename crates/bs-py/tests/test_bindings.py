@@ -207,7 +207,7 @@ def test_the_uncertainty_of_a_fit_is_what_the_cli_writes(fixtures, cli, tmp_path
     """Result.uncertainty() against `brainshift run --uncertainty` on the fitted fixture:
     the same draws give the same σ per node (one process each, same seed and samples)."""
     path = fixtures / "fit" / "scene.toml"
-    result = Scene(path).run()
+    result = Scene.from_toml(path).run()
     u = result.uncertainty(samples=4)
     assert u["samples"] == 4 and u["sigma"].shape == (len(result.node_ids), 3)
     assert np.allclose(u["total"], np.sqrt((u["sigma"] ** 2).sum(axis=1)))
@@ -215,11 +215,12 @@ def test_the_uncertainty_of_a_fit_is_what_the_cli_writes(fixtures, cli, tmp_path
     assert o.returncode == 0, o.stderr
     rows = np.loadtxt(tmp_path / "uncertainty.csv", delimiter=",", skiprows=1)
     assert np.array_equal(rows[:, 0].astype(np.uint64), result.node_ids)
-    # Same scene, same draws; GMRES's reductions are deterministic, so the two agree to
-    # the printed digits (the CSV prints every digit).
-    assert np.allclose(rows[:, 1:4], u["sigma"], rtol=1e-9, atol=1e-12)
+    # Same scene, same draws. Each response is a GMRES solve stopped at the relative
+    # residual 1e-2, from the CLI's composition after its solve here and a fresh one there,
+    # so the two agree to the solves' tolerance (measured: 1 % at most), not to the digit.
+    assert np.allclose(rows[:, 1:4], u["sigma"], rtol=0.03, atol=1e-3)
     with pytest.raises(ValueError, match="at least 2 samples"):
         result.uncertainty(samples=1)
-    nothing = Scene(fixtures / "cube" / "uniaxial-t4.toml").run()
+    nothing = Scene.from_toml(fixtures / "cube" / "uniaxial-t4.toml").run()
     with pytest.raises(BrainshiftError, match="--uncertainty: the scene fits nothing"):
         nothing.uncertainty()
