@@ -86,7 +86,7 @@ impl Response<'_, '_> {
     }
 
     /// GMRES iterations of every response so far.
-    pub fn iterations(&self) -> usize {
+    pub fn gmres_iterations(&self) -> usize {
         self.work.linear
     }
 }

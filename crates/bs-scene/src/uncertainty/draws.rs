@@ -28,8 +28,15 @@ pub(crate) struct Draws<'a> {
     positions: Vec<Point3<f64>>,
     u: &'a [Vector3<f64>],
     base: Vec<Vector3<f64>>,
-    /// Gravity's estimate and the Cholesky factor of its covariance (none: not estimated).
-    gravity: Option<(&'a GravityReport, DMatrix<f64>, Vec<Vector3<f64>>)>,
+    /// Gravity's estimate (none: not estimated).
+    gravity: Option<GravityDraw<'a>>,
+}
+
+/// Gravity's estimate, the Cholesky factor of its covariance and the dead loads at it.
+struct GravityDraw<'a> {
+    report: &'a GravityReport,
+    factor: DMatrix<f64>,
+    body: Vec<Vector3<f64>>,
 }
 
 impl<'a> Draws<'a> {
@@ -65,7 +72,7 @@ impl<'a> Draws<'a> {
             let factor =
                 cov.clone().cholesky().map_or_else(|| DMatrix::from_diagonal(&diagonal), |c| c.l());
             let body = crate::estimate::body_at(p, model, g, &vec![0.0; n])?;
-            draws.gravity = Some((g, factor, body));
+            draws.gravity = Some(GravityDraw { report: g, factor, body });
         }
         Ok(draws)
     }
@@ -132,7 +139,7 @@ impl<'a> Draws<'a> {
         }
         let f = self.data_forces(&noisy, model.reference());
         out.iter_mut().zip(f.iter().zip(&self.base)).for_each(|(o, (a, b))| *o = a - b);
-        if let Some((g, factor, body)) = &self.gravity {
+        if let Some(GravityDraw { report: g, factor, body }) = &self.gravity {
             let z =
                 DVector::from_iterator(factor.ncols(), (0..factor.ncols()).map(|_| rng.normal()));
             let offset = factor * z;

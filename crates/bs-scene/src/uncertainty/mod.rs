@@ -216,7 +216,7 @@ pub fn sample(
                     *l += d.component_mul(&d);
                 }
             }
-            Ok::<usize, SceneError>(r.iterations())
+            Ok::<usize, SceneError>(r.gmres_iterations())
         })
         .map_err(bs_dr::SolveError::from)??;
     let rms = |v: &Vector3<f64>| {

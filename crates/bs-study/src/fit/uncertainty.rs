@@ -51,12 +51,11 @@ fn calibrate(t: &Truth, scene: &Path, label: &str, seed: u64) -> Result<Row, Str
     let (mut within, mut count, mut e2, mut tr) = (0usize, 0usize, 0.0, 0.0);
     let mut z = Vec::new();
     for &a in &live {
-        for k in 0..3 {
-            let s = u.sigma[a][k];
+        for (ek, &s) in e[a].iter().zip(&u.sigma[a]) {
             if s > 0.0 {
                 count += 1;
-                within += usize::from(e[a][k].abs() <= 2.0 * s);
-                z.push(e[a][k].abs() / s);
+                within += usize::from(ek.abs() <= 2.0 * s);
+                z.push(ek.abs() / s);
             }
         }
         e2 += e[a].norm_squared();
