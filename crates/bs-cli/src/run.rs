@@ -189,7 +189,10 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
     reporter.finish();
     let mut solved = solved?;
     let sigma_image = match opts.uncertainty {
-        Some(n) => Some(crate::uncertainty::sample(&mut run, &mut solved, n, opts)?),
+        Some(n) => {
+            let to = (opts.out.as_path(), opts.uncertainty_grid.as_deref(), opts.quiet);
+            Some(crate::uncertainty::sample(&mut run, &mut solved, n, to)?)
+        }
         None => None,
     };
     let ctx = RunContext { total_seconds: started.elapsed().as_secs_f64(), threads };

@@ -7,19 +7,20 @@ use bs_register::registration::{NodalImage, RunResult};
 use bs_scene::uncertainty::{UncertaintyParams, UncertaintyReport};
 use bs_scene::{Run, SceneError, Solved};
 
-use crate::run::RunOptions;
+use std::path::Path;
 
 /// The σ volume's file in a result folder.
 pub const UNCERTAINTY_NII: &str = "uncertainty.nii.gz";
 
-/// Samples σ of `solved` into it and returns its volume (total σ in mm).
+/// Samples σ of `solved` into it and returns its volume (total σ in mm) on the grid of
+/// `grid` (an image; `None`: around the deformed brain), for the result folder `out`.
 pub fn sample(
     run: &mut Run,
     solved: &mut Solved,
     samples: usize,
-    opts: &RunOptions,
+    (out, grid, quiet): (&Path, Option<&Path>, bool),
 ) -> Result<NodalImage, SceneError> {
-    if !opts.quiet {
+    if !quiet {
         eprintln!(
             "uncertainty: {samples} samples of the data's noise through the converged tangent…"
         );
@@ -30,13 +31,13 @@ pub fn sample(
     let mm = p.scene.units.metres() / 1e-3;
     let totals: Vec<f64> = (0..u.sigma.len()).map(|a| u.total(a) * mm).collect();
     let result = RunResult::new(
-        &opts.out,
+        out,
         p.mesh.clone(),
         solved.solution.displacements.clone(),
         p.scene.space.space(),
         p.scene.units,
     )?;
-    let image = NodalImage::new(&result, &totals, opts.uncertainty_grid.as_deref())?;
+    let image = NodalImage::new(&result, &totals, grid)?;
     solved.uncertainty = Some(u);
     Ok(image)
 }

@@ -44,8 +44,8 @@ pub struct Solved {
     pub residuals: Vec<PointRow>,
     /// The gravity solved with and what was estimated of it (`None` without `[gravity]`).
     pub gravity: Option<crate::estimate::GravityReport>,
-    /// σ of the fitted answer, when asked for ([`crate::uncertainty::sample`]).
-    pub uncertainty: Option<crate::uncertainty::Uncertainty>,
+    /// σ of the fitted answer, when asked for (bs-scene's `uncertainty::sample`).
+    pub uncertainty: Option<crate::uncertainty::sigma::Uncertainty>,
 }
 
 impl Solved {

@@ -72,7 +72,7 @@ pub(crate) struct Linearisation<'a> {
     pub cons: &'a Constraints,
     pub tl: &'a Multilevel,
     /// The force change whose displacement response is sought (`None`: the Newton step's
-    /// right-hand side `−Π (f + J u_p)`; [`super::response`]).
+    /// right-hand side `−Π (f + J u_p)`; the linear response of `nk/response.rs`).
     pub load: Option<&'a [Vector3<f64>]>,
     /// Whether GMRES ends after a restart cycle that stalled: under a body force alone
     /// (nothing prescribed moves), where a brain that floats before the skull holds it has

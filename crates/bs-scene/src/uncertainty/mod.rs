@@ -15,6 +15,7 @@
 //! measures against truths the fit does not know.
 
 mod draws;
+pub mod sigma;
 
 use std::time::Instant;
 
@@ -26,6 +27,7 @@ use crate::SceneError;
 use crate::run::{Run, Solved};
 use crate::scene::SolverKind;
 use draws::Draws;
+pub use sigma::Uncertainty;
 
 /// How the σ is sampled.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -43,29 +45,6 @@ pub struct UncertaintyParams {
 impl Default for UncertaintyParams {
     fn default() -> Self {
         UncertaintyParams { samples: 32, seed: 1, rtol: 1e-2 }
-    }
-}
-
-/// σ of a fitted answer.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Uncertainty {
-    /// Per node: σ along x, y, z (scene frame, mesh units).
-    pub sigma: Vec<[f64; 3]>,
-    /// Per landmark of the scene (in file order): σ of its material point's displacement.
-    pub landmarks: Vec<[f64; 3]>,
-    /// What the samples drew ([`UncertaintyReport::parts`]).
-    pub parts: Vec<String>,
-    pub samples: usize,
-    /// GMRES iterations of all responses, and the wall time of the sampling (seconds).
-    pub iterations: usize,
-    pub seconds: f64,
-}
-
-impl Uncertainty {
-    /// The total σ at node `a`: `√(σx² + σy² + σz²)`.
-    pub fn total(&self, a: usize) -> f64 {
-        let [x, y, z] = self.sigma[a];
-        (x * x + y * y + z * z).sqrt()
     }
 }
 
