@@ -45,9 +45,17 @@ pub fn sample(
 /// The run line of the uncertainty (`u` the scene's length unit).
 pub fn line(r: &UncertaintyReport, u: &str) -> String {
     let [x, y, z] = r.max_at;
+    let model = match &r.held_out {
+        None => "the model's own error is not in it".to_string(),
+        Some(h) => format!(
+            "{} held-out landmarks miss by {:.3} {u} rms against {:.3} {u} predicted, \
+             σ scaled × {:.2}",
+            h.landmarks, h.rms_miss, h.rms_predicted, h.scale
+        ),
+    };
     format!(
         "uncertainty from {} samples ({}) in {:.2} s, {} GMRES iterations: σ up to {:.3} {u} \
-         at node {} ({x:.1}, {y:.1}, {z:.1}), mean {:.3} {u}; the model's own error is not in it",
+         at node {} ({x:.1}, {y:.1}, {z:.1}), mean {:.3} {u}; {model}",
         r.samples,
         r.parts.join(", "),
         r.seconds,

@@ -22,6 +22,8 @@ pub struct Slice {
     pub magnitude: Vec<f32>,
     /// Inside the deformed brain.
     pub inside: Vec<bool>,
+    /// σ of a fitted answer (mm), when the result carries one (`run --uncertainty`).
+    pub sigma: Option<Vec<f32>>,
     /// The point of largest displacement, in samples.
     pub marker: [usize; 2],
 }

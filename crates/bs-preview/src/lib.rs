@@ -1,7 +1,8 @@
 //! Pictures for brainshift: a PNG a user looks at instead of reading numbers. [`render`]
 //! draws three orthogonal slices (rows) through the point of largest displacement, each as
 //! the pre-operative image, the warped image and the displacement magnitude in mm with the
-//! deformed brain's outline (columns), and a colour bar in mm.
+//! deformed brain's outline (columns), and a colour bar in mm; with σ on the slices (a
+//! fitted answer's uncertainty) a fourth column shows it, with its own bar.
 //!
 //! The input is plain data ([`Slice`]: a grid of numbers with its pixel size in mm and an
 //! inside mask): this crate knows no meshes, images or files other than the PNG it writes.
@@ -76,12 +77,28 @@ pub fn render(
 ) -> Result<(), PreviewError> {
     register_font();
     let rows = slices.len() as u32;
-    let size = (3 * PANEL + BAR, TOP + rows * (PANEL + ROW_TITLE) + 10);
+    let size = (
+        columns(slices) * PANEL + (columns(slices) - 2) * BAR,
+        TOP + rows * (PANEL + ROW_TITLE) + 10,
+    );
     // The temporary name keeps `.png`: the bitmap backend encodes by the extension.
     bs_atomic::write_via(path, ".png", |tmp| {
         draw(tmp, size, title, slices, window, max_mm).map_err(|e| std::io::Error::other(e.0))
     })
     .map_err(|e| PreviewError(format!("{}: could not write the preview: {e}", path.display())))
+}
+
+/// Three columns, or four with σ on every slice (the σ column sits after the first bar).
+fn columns(slices: &[Slice]) -> u32 {
+    if !slices.is_empty() && slices.iter().all(|s| s.sigma.is_some()) { 4 } else { 3 }
+}
+
+/// The largest σ on the slices (the top of the σ bar).
+fn max_sigma(slices: &[Slice]) -> f64 {
+    slices
+        .iter()
+        .flat_map(|s| s.sigma.iter().flatten())
+        .fold(0.0f32, |m, &v| if v.is_finite() { m.max(v) } else { m }) as f64
 }
 
 fn err<E: std::fmt::Debug>(e: E) -> PreviewError {
@@ -102,15 +119,21 @@ fn draw(
         root.draw_text(s, &("sans-serif", px).into_font().color(&BLACK), (x, y))
     };
     text(title, 8, 6, 18).map_err(err)?;
+    let cols = columns(slices);
+    let sigma_max = max_sigma(slices);
+    // The σ column sits right of the |d| bar.
+    let left = |c: u32| c * PANEL + if c == 3 { BAR } else { 0 };
     for (c, head) in [
         "pre-operative",
         "warped (intra-operative)",
         "|displacement| (mm), outline: deformed brain",
+        "σ of the fit (mm)",
     ]
     .iter()
+    .take(cols as usize)
     .enumerate()
     {
-        text(head, c as i32 * PANEL as i32 + 8, 34, 13).map_err(err)?;
+        text(head, left(c as u32) as i32 + 8, 34, 13).map_err(err)?;
     }
     let grey = |v: f32| {
         let t = ((v - window[0]) / (window[1] - window[0]).max(f32::MIN_POSITIVE)).clamp(0.0, 1.0);
@@ -125,8 +148,8 @@ fn draw(
         let scale = (PANEL as f64 - 8.0) / wmm.max(hmm);
         let (pw, ph) = ((wmm * scale) as u32, (hmm * scale) as u32);
         let oy = y0 + ROW_TITLE + (PANEL - ph) / 2;
-        for c in 0..3u32 {
-            let ox = c * PANEL + (PANEL - pw) / 2;
+        for c in 0..cols {
+            let ox = left(c) + (PANEL - pw) / 2;
             for py in 0..ph {
                 // Row 0 of the slice at the bottom of the panel.
                 let j = (((ph - 1 - py) as f64 + 0.5) / scale / s.spacing[1]) as usize;
@@ -136,6 +159,10 @@ fn draw(
                     let colour = match c {
                         0 => grey(s.before[n]),
                         1 => grey(s.after[n]),
+                        3 => match (s.inside[n], &s.sigma) {
+                            (true, Some(sigma)) => viridis(sigma[n] as f64 / sigma_max.max(1e-9)),
+                            _ => RGBColor(0, 0, 0),
+                        },
                         _ => {
                             if edge(s, i.min(s.width - 1), j.min(s.height - 1)) {
                                 RGBColor(255, 255, 255)
@@ -162,8 +189,22 @@ fn draw(
             }
         }
     }
-    // The colour bar, 0 … max mm.
-    let (bx, by, bh) = (3 * PANEL as i32 + 16, TOP as i32 + ROW_TITLE as i32 + 10, 240i32);
+    colour_bar(&root, 3 * PANEL as i32 + 16, max_mm)?;
+    if cols == 4 {
+        colour_bar(&root, (4 * PANEL + BAR) as i32 + 16, sigma_max)?;
+    }
+    root.present().map_err(err)?;
+    Ok(())
+}
+
+/// A colour bar, 0 … `max` mm, its left edge at `bx`.
+fn colour_bar<DB: DrawingBackend>(
+    root: &DrawingArea<DB, plotters::coord::Shift>,
+    bx: i32,
+    max: f64,
+) -> Result<(), PreviewError> {
+    let (by, bh) = (TOP as i32 + ROW_TITLE as i32 + 10, 240i32);
+    let font = ("sans-serif", 13).into_font().color(&BLACK);
     for y in 0..bh {
         let t = 1.0 - y as f64 / (bh - 1) as f64;
         root.draw(&Rectangle::new([(bx, by + y), (bx + 22, by + y + 1)], viridis(t).filled()))
@@ -171,13 +212,13 @@ fn draw(
     }
     root.draw(&Rectangle::new([(bx, by), (bx + 22, by + bh)], BLACK.stroke_width(1)))
         .map_err(err)?;
+    let digits = if max < 1.0 { 2 } else { 1 };
     for k in 0..=4 {
-        let v = max_mm * k as f64 / 4.0;
+        let v = max * k as f64 / 4.0;
         let y = by + bh - 1 - (k * (bh - 1) / 4);
-        text(&format!("{v:.1}"), bx + 28, y - 7, 13).map_err(err)?;
+        root.draw_text(&format!("{v:.digits$}"), &font, (bx + 28, y - 7)).map_err(err)?;
     }
-    text("mm", bx + 28, by - 20, 13).map_err(err)?;
-    root.present().map_err(err)?;
+    root.draw_text("mm", &font, (bx + 28, by - 20)).map_err(err)?;
     Ok(())
 }
 
@@ -209,12 +250,13 @@ mod tests {
             after: (0..w * h).map(|n| (n / w) as f32).collect(),
             magnitude: (0..w * h).map(|n| (n % 7) as f32).collect(),
             inside: (0..w * h).map(|n| (n % w) > 10 && (n % w) < 30).collect(),
+            sigma: None,
             marker: [20, 15],
         };
         let dir = std::env::temp_dir().join(format!("bs-preview-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("p.png");
-        render(&path, "test", &[s.clone(), s.clone(), s], [0.0, 40.0], 6.0).unwrap();
+        render(&path, "test", &[s.clone(), s.clone(), s.clone()], [0.0, 40.0], 6.0).unwrap();
         let png = std::fs::read(&path).unwrap();
         assert_eq!(&png[1..4], b"PNG");
         // IHDR: width and height, big-endian, at bytes 16..24.
@@ -223,6 +265,13 @@ mod tests {
         assert_eq!((width, height), (3 * PANEL + BAR, TOP + 3 * (PANEL + ROW_TITLE) + 10));
         // Nothing else was left in the folder (the temporary file was renamed).
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        // With σ on every slice: a fourth panel and a second bar.
+        let with = Slice { sigma: Some((0..w * h).map(|n| (n % 5) as f32 * 0.1).collect()), ..s };
+        assert!((max_sigma(std::slice::from_ref(&with)) - 0.4).abs() < 1e-6);
+        render(&path, "test", &[with.clone(), with.clone(), with], [0.0, 40.0], 6.0).unwrap();
+        let png = std::fs::read(&path).unwrap();
+        let width = u32::from_be_bytes([png[16], png[17], png[18], png[19]]);
+        assert_eq!(width, 4 * PANEL + 2 * BAR);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -19,13 +19,14 @@ pub struct Planes {
 }
 
 /// Cuts the planes of `g` through the voxel `at` (its index; `None`: the voxel of largest
-/// |d| of `field`); `in_brain(n)`: voxel `n` lies inside the deformed brain.
+/// |d| of `field`); `in_brain(n)`: voxel `n` lies inside the deformed brain; `sigma`: σ (mm)
+/// per voxel, when the result has one.
 pub fn planes(
     g: &Grid,
     in_brain: &dyn Fn(usize) -> bool,
-    before: &Volume<f32>,
-    after: &[f32],
+    (before, after): (&Volume<f32>, &[f32]),
     field: &[[f32; 3]],
+    sigma: Option<&[f32]>,
     at: Option<usize>,
 ) -> Planes {
     let [nx, ny, nz] = g.dims();
@@ -54,6 +55,7 @@ pub fn planes(
                 after: Vec::with_capacity(w * h),
                 magnitude: Vec::with_capacity(w * h),
                 inside: Vec::with_capacity(w * h),
+                sigma: sigma.map(|_| Vec::with_capacity(w * h)),
                 marker: [v[a], v[b]],
             };
             for y in 0..h {
@@ -66,6 +68,9 @@ pub fn planes(
                     p.after.push(after[n]);
                     p.magnitude.push(norm(&field[n]));
                     p.inside.push(inside(n));
+                    if let (Some(out), Some(s)) = (&mut p.sigma, sigma) {
+                        out.push(s[n]);
+                    }
                 }
             }
             p

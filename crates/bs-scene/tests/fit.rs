@@ -929,3 +929,71 @@ fn the_uncertainty_of_a_scene_without_a_fit_is_refused() {
     let e = bs_scene::uncertainty::check(&run).unwrap_err().to_string();
     assert!(e.contains("--uncertainty") && e.contains("fits nothing"), "{e}");
 }
+
+/// Held-out landmarks scale σ by how much more they miss than σ predicts: pairs placed on
+/// the fitted answer miss by nothing and leave σ as it is; the same pairs moved by known
+/// offsets give the moment estimate of those offsets (`uncertainty/held_out.rs`), and every
+/// σ is that factor times the unscaled one (the same draws).
+#[test]
+fn held_out_landmarks_scale_sigma_by_their_misses() {
+    let dir = tmp("sigma-held-out");
+    let mut rng = bs_mesh::rng::SplitMix64::new(5);
+    std::fs::write(dir.join("scan.csv"), noisy_plane(36.0, 0.5, &mut rng)).unwrap();
+    let tau = 0.1;
+    let measurement = format!(
+        "[[measurement]]\npoints = \"scan.csv\"\nnset = \"ZMAX\"\nsigma = 0.5\nsliding = \"free\"\n\
+         [uncertainty]\nheld_out = \"held-out.csv\"\nsigma = {tau:?}\n"
+    );
+    let path = scene(&dir, &measurement);
+    let mut run = Run::prepare(Prepared::load(&path).unwrap()).unwrap();
+    let solved = run.solve(&mut |_| {}).unwrap();
+    let u = &solved.solution.displacements;
+    let mesh = run.prepared.mesh.clone();
+    // Five interior nodes (their material points are the nodes themselves).
+    let at = [
+        [10.0, 10.0, 30.0],
+        [20.0, 20.0, 30.0],
+        [30.0, 10.0, 20.0],
+        [10.0, 30.0, 30.0],
+        [20.0, 10.0, 20.0],
+    ];
+    let nodes: Vec<usize> = at
+        .iter()
+        .map(|p| mesh.nodes.iter().position(|x| (x - Point3::from(*p)).norm() < 1e-9).unwrap())
+        .collect();
+    let offsets =
+        [[0.5, 0.0, 0.0], [0.0, -0.4, 0.3], [0.2, 0.2, 0.2], [0.0, 0.0, -0.6], [0.3, -0.3, 0.0]]
+            .map(Vector3::from);
+    let write = |offset: &dyn Fn(usize) -> Vector3<f64>| {
+        let mut s = String::from("x,y,z,x2,y2,z2\n");
+        for (k, &a) in nodes.iter().enumerate() {
+            let (x, y) = (mesh.nodes[a], mesh.nodes[a] + u[a] + offset(k));
+            s += &format!("{:?},{:?},{:?},{:?},{:?},{:?}\n", x.x, x.y, x.z, y.x, y.y, y.z);
+        }
+        std::fs::write(dir.join("held-out.csv"), s).unwrap();
+    };
+    let params =
+        bs_scene::uncertainty::UncertaintyParams { samples: 16, seed: 3, ..Default::default() };
+    write(&|_| Vector3::zeros());
+    let plain = bs_scene::uncertainty::sample(&mut run, &solved, &params).unwrap();
+    let h = plain.held_out.clone().unwrap();
+    assert_eq!(h.landmarks, 5);
+    assert!(h.rms_miss < 1e-9, "pairs on the answer miss by {}", h.rms_miss);
+    assert_eq!((h.estimate, h.scale), (0.0, 1.0));
+    // The posterior's mean tr Σ at the pairs, from what it predicted with their noise.
+    let tr = h.rms_predicted.powi(2) - 3.0 * tau * tau;
+    assert!(tr > 0.0, "{tr}");
+    write(&|k| offsets[k]);
+    let scaled = bs_scene::uncertainty::sample(&mut run, &solved, &params).unwrap();
+    let h = scaled.held_out.clone().unwrap();
+    let e2: f64 = offsets.iter().map(|d| d.norm_squared()).sum();
+    let expect = ((e2 - 15.0 * tau * tau) / (5.0 * tr)).sqrt();
+    assert!((h.estimate / expect - 1.0).abs() < 1e-6, "{} vs {expect}", h.estimate);
+    assert!(h.scale > 1.0 && h.scale == h.estimate);
+    assert!((h.rms_miss - (e2 / 5.0).sqrt()).abs() < 1e-9);
+    for a in 0..u.len() {
+        let (s, p) = (scaled.total(a), plain.total(a));
+        assert!((s - h.scale * p).abs() <= 1e-6 * s.max(1e-12), "node {a}: {s} vs {p}");
+    }
+    assert!(scaled.parts.iter().any(|p| p.contains("5 held-out landmarks")), "{:?}", scaled.parts);
+}

@@ -162,12 +162,17 @@ fn resample_and_write<T: Copy>(
             data: v.data.iter().map(&grey).collect(),
         };
         let in_brain = |n: usize| map.reference_point(n).is_some();
+        let mm = result.units.metres() / 1e-3;
+        let sigma = result
+            .sigma
+            .as_ref()
+            .map(|s| map.nodal(&s.iter().map(|v| v * mm).collect::<Vec<f64>>()));
         crate::planes::planes(
             map.grid(),
             &in_brain,
-            &f(volume),
-            &f(&warped).data,
+            (&f(volume), &f(&warped).data),
             &map.harmonic_field(),
+            sigma.as_deref(),
             focus.and_then(|p| voxel_of(map.grid(), p)),
         )
     });

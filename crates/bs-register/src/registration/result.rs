@@ -29,6 +29,9 @@ pub struct RunResult {
     /// The run resected a region (report.json's `resected`): gap voxels the deformed brain
     /// encloses are its cavity, filled with fluid by the warps.
     pub resected: bool,
+    /// Total σ per node (mesh units): the `sigma` point field of result.vtu, written by
+    /// `run --uncertainty`; none without it.
+    pub sigma: Option<Vec<f64>>,
 }
 
 impl RunResult {
@@ -107,6 +110,22 @@ impl RunResult {
         }
         let displacements: Vec<Vector3<f64>> =
             field.values.chunks_exact(3).map(|c| Vector3::new(c[0], c[1], c[2])).collect();
+        let sigma = match fields.point.iter().find(|f| f.name == "sigma") {
+            None => None,
+            Some(f) if f.components == 1 && f.values.len() == mesh.nodes.len() => {
+                Some(f.values.clone())
+            }
+            Some(f) => {
+                return Err(err(format!(
+                    "{}: \"sigma\" has {} components × {} values for {} nodes; expected one \
+                     per node (the total σ `run --uncertainty` writes)",
+                    vtu.display(),
+                    f.components,
+                    f.values.len() / f.components.max(1),
+                    mesh.nodes.len()
+                )));
+            }
+        };
         let skull_file = dir.join("skull.off");
         let skull = if skull_file.is_file() {
             Some(bs_mesh::io::read_surface(&skull_file).map_err(|e| err(e.to_string()))?)
@@ -127,6 +146,7 @@ impl RunResult {
             r.notes.extend(notes);
             r.skull = skull;
             r.resected = resected;
+            r.sigma = sigma;
             r
         })
     }
@@ -163,6 +183,7 @@ impl RunResult {
             skull: None,
             notes: vec![],
             resected: false,
+            sigma: None,
         })
     }
 

@@ -6,7 +6,7 @@ use serde::Deserialize;
 
 use super::{
     Boundary, Contact, ElementChoice, Gravity, MaterialModel, Measurement, Region, Solver,
-    SpaceName, Units,
+    SpaceName, UncertaintySection, Units,
 };
 use crate::SceneError;
 
@@ -61,6 +61,9 @@ pub struct Scene {
     pub output: OutputSection,
     /// Gravity (and the fluid that buoys the brain below its level); none: no body force.
     pub gravity: Option<Gravity>,
+    /// What `run --uncertainty` may use beyond the fit (held-out landmarks); none: the
+    /// fit's posterior alone.
+    pub uncertainty: Option<UncertaintySection>,
 }
 
 impl Scene {
@@ -89,6 +92,11 @@ impl Scene {
                 files.extend(l.files_mut());
             }
             for f in files {
+                *f = dir.join(&*f);
+            }
+        }
+        if let Some(u) = &mut scene.uncertainty {
+            for f in u.held_out.files_mut() {
                 *f = dir.join(&*f);
             }
         }
@@ -126,6 +134,9 @@ impl Scene {
         }
         if let Some(g) = &scene.gravity {
             g.validate()?;
+        }
+        if let Some(u) = &scene.uncertainty {
+            u.validate()?;
         }
         validate_solver(&scene.solver)
     }

@@ -47,6 +47,7 @@ mod gravity;
 mod material;
 mod measurement;
 mod solver;
+mod uncertainty;
 
 pub use boundary::*;
 pub use file::*;
@@ -55,6 +56,7 @@ pub use gravity::*;
 pub use material::*;
 pub use measurement::*;
 pub use solver::*;
+pub use uncertainty::*;
 
 #[cfg(test)]
 mod tests {

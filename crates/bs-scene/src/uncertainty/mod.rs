@@ -15,6 +15,7 @@
 //! measures against truths the fit does not know.
 
 mod draws;
+pub mod held_out;
 pub mod sigma;
 
 use std::time::Instant;
@@ -27,6 +28,7 @@ use crate::SceneError;
 use crate::run::{Run, Solved};
 use crate::scene::SolverKind;
 use draws::Draws;
+pub use held_out::{HeldOut, HeldOutScale};
 pub use sigma::Uncertainty;
 
 /// How the σ is sampled.
@@ -67,6 +69,10 @@ pub struct UncertaintyReport {
     pub mean_sigma: f64,
     /// Per landmark (file order): σ along x, y, z and in total.
     pub landmarks: Vec<LandmarkSigma>,
+    /// What `[uncertainty] held_out` said and the factor σ was scaled by (every σ above is
+    /// scaled); none without held-out landmarks.
+    #[serde(default)]
+    pub held_out: Option<HeldOutScale>,
 }
 
 /// σ at one landmark.
@@ -111,6 +117,7 @@ impl UncertaintyReport {
                 (0..n).map(|a| u.total(a)).sum::<f64>() / n as f64
             },
             landmarks,
+            held_out: u.held_out.clone(),
         }
     }
 }
@@ -124,7 +131,7 @@ pub fn check(run: &Run) -> Result<(), SceneError> {
         .iter()
         .any(|m| matches!(m.data, crate::measure::MeasuredData::Surface { .. }));
     if scans || crate::estimate::estimates(p) {
-        return Ok(());
+        return HeldOut::read(p).map(|_| ());
     }
     let why = if p.measurements.is_empty() {
         "the scene fits nothing (no [[measurement]]), so the answer has no fitted \
@@ -163,7 +170,10 @@ pub fn sample(
     let data_used = gravity.is_none_or(|g| g.data_used);
     let fit = c.fit.as_ref().filter(|_| data_used);
     let draws = Draws::new(p, &c.model, fit, u, gravity)?;
-    let anchors = landmark_anchors(p);
+    let held_out = HeldOut::read(p)?;
+    let mut anchors = landmark_anchors(p);
+    let scene_landmarks = anchors.len();
+    anchors.extend(held_out.iter().flat_map(|h| h.anchors.iter().copied()));
     let n = u.len();
     let mut m2 = vec![Vector3::<f64>::zeros(); n];
     let mut l2 = vec![Vector3::<f64>::zeros(); anchors.len()];
@@ -198,14 +208,28 @@ pub fn sample(
             Ok::<usize, SceneError>(r.gmres_iterations())
         })
         .map_err(bs_dr::SolveError::from)??;
+    let samples = params.samples as f64;
+    let held_out = held_out.map(|h| {
+        let var: Vec<Vector3<f64>> = l2[scene_landmarks..].iter().map(|v| v / samples).collect();
+        held_out::scale(&h.files, &h.misses(u), &var, h.sigma)
+    });
+    let factor = held_out.as_ref().map_or(1.0, |h| h.scale);
     let rms = |v: &Vector3<f64>| {
-        let s = (v / params.samples as f64).map(f64::sqrt);
+        let s = (v / samples).map(|x| x.sqrt() * factor);
         [s.x, s.y, s.z]
     };
+    let mut parts = draws.parts();
+    if let Some(h) = &held_out {
+        parts.push(format!(
+            "the model's own error, from {} held-out landmarks (σ × {:.2})",
+            h.landmarks, h.scale
+        ));
+    }
     Ok(Uncertainty {
         sigma: m2.iter().map(rms).collect(),
-        landmarks: l2.iter().map(rms).collect(),
-        parts: draws.parts(),
+        landmarks: l2[..scene_landmarks].iter().map(rms).collect(),
+        held_out,
+        parts,
         samples: params.samples,
         iterations,
         seconds: started.elapsed().as_secs_f64(),

@@ -10,6 +10,8 @@ pub struct Uncertainty {
     pub landmarks: Vec<[f64; 3]>,
     /// What the samples drew (the report's `parts`).
     pub parts: Vec<String>,
+    /// The held-out landmarks' check and the factor every σ here is already scaled by.
+    pub held_out: Option<super::held_out::HeldOutScale>,
     pub samples: usize,
     /// GMRES iterations of all responses, and the wall time of the sampling (seconds).
     pub iterations: usize,

@@ -10,6 +10,7 @@
 //! * `fit gravity-fixture` writes `fixtures/fit-gravity/` (a gravity truth, its scan, the
 //!   fit estimating level and direction, and that scene's forward solve).
 
+mod calibration_chart;
 mod chart;
 mod gravity;
 mod landmarks;
@@ -158,7 +159,9 @@ pub fn run_uncertainty(quick: bool) -> Result<(), String> {
         return Ok(());
     }
     crate::util::replace_block(&root().join("docs/uncertainty.md"), "uncertainty-study", &doc)?;
-    println!("wrote docs/uncertainty.md");
+    let stem = root().join("docs/charts/uncertainty-calibration");
+    crate::plot::save(&calibration_chart::CalibrationChart { rows: &rows }, &stem, (900, 700))?;
+    println!("wrote docs/uncertainty.md and {}.{{svg,png}}", stem.display());
     Ok(())
 }
 
