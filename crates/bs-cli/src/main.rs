@@ -164,7 +164,8 @@ enum Command {
         cavity_label: Option<u32>,
         /// Also draw a PNG: three orthogonal slices through the largest displacement
         /// (pre-operative, warped, and |displacement| in mm with the deformed brain's
-        /// outline and a colour bar).
+        /// outline and a colour bar; a fourth column of σ in mm when the result was run
+        /// with --uncertainty).
         #[arg(long, value_name = "PNG")]
         preview: Option<PathBuf>,
         /// The preview's slices through this point instead (RAS mm), e.g. a tumour's

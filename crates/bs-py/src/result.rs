@@ -215,7 +215,8 @@ impl RunResult {
     /// (docs/uncertainty.md): a dict with `sigma` (n, 3) float64 (σ along x, y, z per node,
     /// rows of `displacements`, the scene's unit), `total` (n,) and the keys of report.json's
     /// `uncertainty` (samples, iterations, seconds, parts, max_sigma, max_node, max_at,
-    /// mean_sigma, landmarks). Raises BrainshiftError for a scene with nothing fitted,
+    /// mean_sigma, landmarks, held_out: the scene's held-out landmarks' check and the
+    /// factor σ was scaled by, or None). Raises BrainshiftError for a scene with nothing fitted,
     /// ValueError for fewer than 2 samples.
     #[pyo3(signature = (samples=32, seed=1))]
     fn uncertainty<'py>(
