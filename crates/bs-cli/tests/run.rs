@@ -418,4 +418,17 @@ fn the_uncertainty_of_the_fitted_fixture_is_written_three_ways() {
     }
     let nii = std::fs::metadata(out.join("uncertainty.nii.gz")).unwrap();
     assert!(nii.len() > 1000);
+    // The preview of a warp of this result has σ as a fourth column (four 300-pixel panels
+    // and two 110-pixel colour bars; three panels and one bar without σ, bs-preview).
+    let (nii, png) = (out.join("uncertainty.nii.gz"), dir.0.join("preview.png"));
+    let warped = dir.0.join("warped.nii.gz");
+    let args = ["warp", "--image", nii.to_str().unwrap(), "--result", o];
+    let w = brainshift(
+        &[&args[..], &["--out", warped.to_str().unwrap(), "--preview", png.to_str().unwrap()]]
+            .concat(),
+    );
+    assert!(w.status.success(), "{}", String::from_utf8_lossy(&w.stderr));
+    let png = std::fs::read(&png).unwrap();
+    let width = u32::from_be_bytes([png[16], png[17], png[18], png[19]]);
+    assert_eq!(width, 4 * 300 + 2 * 110);
 }
