@@ -34,6 +34,8 @@ pub fn check(path: &Path) -> Result<Checked, SceneError> {
 /// [`check`] for a scene already prepared (the Python bindings' scene from arrays).
 pub fn check_prepared(prepared: Prepared) -> Result<Checked, SceneError> {
     crate::memory::require_fits(&prepared, crate::memory::available())?;
+    // `[uncertainty] held_out` is read only by `run --uncertainty`: its mistakes found here.
+    crate::uncertainty::held_out::HeldOut::read(&prepared)?;
     let composed = compose(&prepared)?;
     let initial_gap = composed.check_initial_gap(&prepared)?;
     let memory_estimate = crate::memory::estimate(&prepared);

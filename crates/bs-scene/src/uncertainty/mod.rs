@@ -58,7 +58,8 @@ pub struct UncertaintyReport {
     pub iterations: usize,
     pub seconds: f64,
     /// What the samples drew: `scan noise`, `rigid correction from the bone points' noise`,
-    /// `gravity's estimated parameters`. The model's own error is not among them.
+    /// `gravity's estimated parameters`; and `the scale from N held-out landmarks` when
+    /// they scaled it (`held_out`). The model's own error is not drawn.
     pub parts: Vec<String>,
     /// The largest total σ (mesh units), the node id where it is and the node's reference
     /// position (scene frame).
@@ -219,11 +220,8 @@ pub fn sample(
         [s.x, s.y, s.z]
     };
     let mut parts = draws.parts();
-    if let Some(h) = &held_out {
-        parts.push(format!(
-            "the model's own error, from {} held-out landmarks (σ × {:.2})",
-            h.landmarks, h.scale
-        ));
+    if let Some(h) = held_out.as_ref().filter(|h| h.scale > 1.0) {
+        parts.push(format!("the scale from {} held-out landmarks", h.landmarks));
     }
     Ok(Uncertainty {
         sigma: m2.iter().map(rms).collect(),

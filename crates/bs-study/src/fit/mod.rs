@@ -33,6 +33,15 @@ pub fn fixture() -> Result<(), String> {
     let t = truth(&dir, "../mni152-regions")?;
     let case = Case::target();
     let text = write_scan(&t, &case, &dir, "../mni152-regions")?;
+    // Held-out landmarks for `--uncertainty` (the calibration study's: 15 pairs, 0.5 mm).
+    let pairs = landmarks::pairs(&t, uncertainty::HELD_OUT, uncertainty::HELD_OUT_SIGMA, 1047);
+    landmarks::write_pairs(&dir.join("held-out.csv"), &pairs)?;
+    let text = format!(
+        "{text}\n# Landmark pairs the fit does not see (15, 5–25 mm under the window, 0.5 mm noise):\n\
+         # with --uncertainty they scale σ where they miss by more than it predicts.\n\
+         [uncertainty]\nheld_out = \"held-out.csv\"\nsigma = {:?}\n",
+        uncertainty::HELD_OUT_SIGMA
+    );
     crate::util::write(&dir.join("scene.toml"), &text)?;
     // The same scan as a PLY file (for the test that both give the same answer).
     let points =
