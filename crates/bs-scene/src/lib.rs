@@ -15,6 +15,8 @@
 //! * [`run`] and [`output`]: the verified run of a scene and its three files;
 //! * (a run's result applied to images — the warp, the field, the preview's planes — is
 //!   bs-register's, above this crate);
+//! * [`uncertainty`]: σ of a fitted answer, sampled through the converged tangent after
+//!   its solve (`run --uncertainty`) and scaled by held-out landmarks;
 //! * [`check`]: everything `run` does before solving, with [`memory`] and [`advice`];
 //! * [`findings`]: the speed-versus-accuracy results `check` advises from, typed end to end
 //!   (the studies that measure them are bs-study's, driven by `cargo xtask`).
