@@ -42,6 +42,7 @@ impl Running {
             threads: None,
             no_field: false,
             no_surface: false,
+            uncertainty: None,
             max_message_mb: 64.0,
             stall_seconds: 30.0,
             max_clients: 4,

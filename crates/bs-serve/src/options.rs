@@ -31,6 +31,11 @@ pub struct Options {
     /// Do not send the DeformedBrain surface.
     #[arg(long)]
     pub no_surface: bool,
+    /// After each update, sample σ of the fitted answer with N samples and send IMAGE
+    /// Uncertainty (total σ in mm, float32 on the image's grid) after the WarpedImage; the
+    /// scene must fit something (docs/uncertainty.md).
+    #[arg(long, value_name = "N")]
+    pub uncertainty: Option<usize>,
     /// Largest message accepted, MB.
     #[arg(long, default_value_t = 64.0)]
     pub max_message_mb: f64,

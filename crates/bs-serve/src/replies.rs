@@ -1,6 +1,8 @@
 //! The answers to an update, in the order the surgeon needs them, each made just before it
 //! is sent: IMAGE `WarpedImage` (the pre-operative image warped into the new configuration,
-//! float32 on its own grid, IJK-to-RAS), IMAGE `DisplacementField` (d(y) = X(y) − y, RAS
+//! float32 on its own grid, IJK-to-RAS), with `--uncertainty` IMAGE `Uncertainty` (total σ
+//! of the fitted answer in mm on the same grid, zero outside the brain), IMAGE
+//! `DisplacementField` (d(y) = X(y) − y, RAS
 //! mm, three components), POLYDATA `DeformedBrain` (the deformed boundary, RAS mm) and
 //! STRING `Report` (report.json's keys plus `serve`: the seconds of each part and the map's
 //! account of the space between brain and skull). Every message goes out in the header
@@ -129,6 +131,13 @@ pub fn answer<W: Write>(
     send(out, wire, "WarpedImage", &image)?;
     let send_warped = sent.elapsed().as_secs_f64();
     drop(warped);
+    if let Some(sigma) = &solution.sigma {
+        let s = bs.install(|| map.nodal(sigma));
+        let bytes = bs.install(|| le_bytes(&s, buffer));
+        let image = Image::float32_le(dims, 1, &ijk_to_ras, RAS, bytes)
+            .map_err(|e| ReplyError::Make(e.to_string()))?;
+        send(out, wire, "Uncertainty", &image)?;
+    }
     if field {
         let d: Vec<f32> =
             bs.install(|| map.field_with_gap(gap.as_deref())).into_iter().flatten().collect();

@@ -32,6 +32,8 @@ pub struct Solution {
     pub surface: bs_mesh::BoundarySurface,
     /// Seconds from the message to the verified answer.
     pub solve_seconds: f64,
+    /// Total σ per node (mm), with `--uncertainty`.
+    pub sigma: Option<Vec<f64>>,
 }
 
 /// The session, the image and the scene's names (see the module documentation).
@@ -48,6 +50,8 @@ pub struct Brainshift {
     pub set: Option<String>,
     set_ids: Vec<u64>,
     pool: rayon::ThreadPool,
+    /// `--uncertainty`'s samples.
+    uncertainty: Option<usize>,
     verbose: bool,
     log: Log,
     /// Seconds the preparation took.
@@ -67,6 +71,14 @@ impl Brainshift {
         let prepared = Prepared::load(&o.scene).map_err(|e| e.to_string())?;
         let frame = Frame::new(prepared.scene.space, prepared.scene.units);
         let session = pool.install(|| Session::new(prepared)).map_err(|e| e.to_string())?;
+        if let Some(n) = o.uncertainty {
+            if n < 2 {
+                return Err(format!(
+                    "--uncertainty {n}: give at least 2 samples (32 give σ to about 13 %)"
+                ));
+            }
+            bs_scene::uncertainty::check(session.run()).map_err(|e| e.to_string())?;
+        }
         let (image, _) = bs_image::formats::read_image(&o.image).map_err(|e| e.to_string())?;
         let set = choose_set(&session, o)?;
         let set_ids = match &set {
@@ -85,6 +97,7 @@ impl Brainshift {
             set,
             set_ids,
             pool,
+            uncertainty: o.uncertainty,
             verbose: o.verbose,
             log,
             prepare_seconds: started.elapsed().as_secs_f64(),
@@ -130,7 +143,9 @@ impl Brainshift {
                     ));
                 }
             };
-            let solved = s.apply(updates, &mut observe).map_err(|e| e.to_string())?;
+            let mut solved = s.apply(updates, &mut observe).map_err(|e| e.to_string())?;
+            let sigma =
+                self.uncertainty.and_then(|samples| sigma(&mut s, &mut solved, samples, &log));
             let threads = rayon::current_num_threads();
             let ctx = RunContext { total_seconds: started.elapsed().as_secs_f64(), threads };
             let report = report(s.run(), &solved, ctx);
@@ -142,7 +157,8 @@ impl Brainshift {
                     .map_err(|e| e.to_string())?;
             let mut result = result.with_skull(p.skull.clone());
             result.resected = p.resection.is_some();
-            Ok(Solution { result, report, surface, solve_seconds: started.elapsed().as_secs_f64() })
+            let solve_seconds = started.elapsed().as_secs_f64();
+            Ok(Solution { result, report, surface, solve_seconds, sigma })
         })
     }
 
@@ -172,6 +188,30 @@ impl Brainshift {
     /// Runs `f` on the server's solver threads.
     pub fn install<T: Send>(&self, f: impl FnOnce() -> T + Send) -> T {
         self.pool.install(f)
+    }
+}
+
+/// σ of the session's answer `solved` from `samples` samples, per node in mm, kept in
+/// `solved` for the report; a sampling that fails is logged and leaves the answer without
+/// one (the update itself stands).
+fn sigma(
+    s: &mut Session,
+    solved: &mut bs_scene::Solved,
+    samples: usize,
+    log: &Log,
+) -> Option<Vec<f64>> {
+    let params = bs_scene::uncertainty::UncertaintyParams { samples, ..Default::default() };
+    match s.uncertainty(solved, &params) {
+        Ok(u) => {
+            let mm = s.run().prepared.scene.units.metres() / 1e-3;
+            let sigma = (0..u.sigma.len()).map(|a| u.total(a) * mm).collect();
+            solved.uncertainty = Some(u);
+            Some(sigma)
+        }
+        Err(e) => {
+            log.line(&format!("  uncertainty not sampled: {e}"));
+            None
+        }
     }
 }
 

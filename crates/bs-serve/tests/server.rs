@@ -48,6 +48,7 @@ fn start() -> Running {
         threads: Some(1),
         no_field: false,
         no_surface: false,
+        uncertainty: None,
         max_message_mb: 64.0,
         stall_seconds: 30.0,
         max_clients: 16,

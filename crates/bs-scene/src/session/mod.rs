@@ -27,6 +27,7 @@ mod landmarks;
 mod points;
 mod resect;
 mod sets;
+mod uncertainty;
 mod update;
 
 use history::History;
