@@ -551,3 +551,46 @@ def test_intraop_points_are_fitted_and_the_report_says_how(fixtures):
         c.stop()
     finally:
         s.stop()
+
+
+def test_the_uncertainty_image_is_what_run_writes_on_the_same_grid(fixtures, cli, tmp_path):
+    """`--uncertainty 8` on fixtures/fit: its own scan sent as POINT 'IntraopPoints' is
+    answered with IMAGE 'Uncertainty' right after the WarpedImage (read by pyigtl), the
+    total σ on the pre-operative image's grid; against `brainshift run --uncertainty 8
+    --uncertainty-grid` of the same scene read with nibabel. The scan crosses the wire as
+    float32 and each response is a GMRES solve to 1e-2, so the two agree to a few per cent,
+    not to the digit."""
+    import json
+
+    nib = pytest.importorskip("nibabel")
+    s = ServerProcess(fixtures, "--uncertainty", "8", "--no-field", "--no-surface", scene="fit/scene.toml",
+                      image="mni152/t1.nii.gz")
+    try:
+        c = client(s.port)
+        scan = np.loadtxt(fixtures / "fit" / "scan.csv", delimiter=",", skiprows=1)
+        c.send_message(pyigtl.PointMessage(scan, device_name="IntraopPoints"), wait=True)
+        u = c.wait_for_message("Uncertainty", timeout=240)
+        r = c.wait_for_message("Report", timeout=60)
+        assert u is not None and r is not None, "".join(s.lines[-10:])
+        c.stop()
+    finally:
+        s.stop()
+    report = json.loads(r.string)["uncertainty"]
+    assert report["samples"] == 8, report
+    o = cli("run", fixtures / "fit" / "scene.toml", "--out", tmp_path, "--uncertainty", "8",
+            "--uncertainty-grid", fixtures / "mni152" / "t1.nii.gz", "--quiet")
+    assert o.returncode == 0, o.stderr
+    ref = nib.load(tmp_path / "uncertainty.nii.gz")
+    expected = np.asarray(ref.dataobj, dtype=np.float32)
+    got = np.asarray(u.image, dtype=np.float32)
+    if got.shape != expected.shape:  # pyigtl holds voxels k, j, i
+        got = got.transpose(2, 1, 0)
+    assert got.shape == expected.shape
+    assert np.allclose(u.ijk_to_world_matrix, ref.affine, atol=1e-4), (u.ijk_to_world_matrix, ref.affine)
+    top = expected.max()
+    assert top > 0.1, top
+    assert abs(got.max() - top) < 0.05 * top, (got.max(), top)
+    # The same voxels inside the deformed brain (float32 points move its boundary by
+    # micrometres: a voxel centre on it may flip).
+    assert np.mean((got > 0) != (expected > 0)) < 1e-4
+    assert np.allclose(got, expected, rtol=0.05, atol=0.02 * top)
