@@ -6,13 +6,15 @@
 //!   paths resolved, intra-doc links counted);
 //! * [`cycles`]: every circle of modules in any crate, with its path and its imports;
 //! * [`layers`]: the folder order of bs-dr (a lower folder importing a higher one fails,
-//!   naming both files).
+//!   naming both files);
+//! * [`unused`]: dependencies no file of their package names.
 
 pub mod crates;
 pub mod cycles;
 pub mod layers;
 pub mod modules;
 pub mod source;
+pub mod unused;
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -76,6 +78,7 @@ pub fn run() -> Result<String, String> {
         problems.push(e);
         0
     });
+    problems.extend(unused::unused(&metadata)?);
     let mut summary = format!("crate graph OK ({edges} workspace edges checked)\n");
     for (name, src) in members(&metadata)? {
         let c = check_crate(&name, &src, &mut problems)?;
@@ -86,7 +89,9 @@ pub fn run() -> Result<String, String> {
         summary.push('\n');
     }
     if problems.is_empty() {
-        summary.push_str("no module cycle in any crate; every layer order holds");
+        summary.push_str(
+            "no module cycle in any crate; every layer order holds; every dependency is used",
+        );
         Ok(summary)
     } else {
         Err(problems.join("\n"))
