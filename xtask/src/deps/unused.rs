@@ -53,32 +53,23 @@ fn names(text: &str, lib: &str) -> bool {
 
 /// The Rust files of the package in `dir`, concatenated.
 fn sources(dir: &Path) -> Result<String, String> {
-    let mut text = String::new();
+    let mut files = Vec::new();
     let build = dir.join("build.rs");
     if build.is_file() {
-        text +=
-            &std::fs::read_to_string(&build).map_err(|e| format!("{}: {e}", build.display()))?;
+        files.push(build);
     }
     for sub in ["src", "tests", "benches", "examples"] {
-        collect(&dir.join(sub), &mut text)?;
-    }
-    Ok(text)
-}
-
-fn collect(dir: &Path, text: &mut String) -> Result<(), String> {
-    let Ok(entries) = std::fs::read_dir(dir) else { return Ok(()) };
-    let mut paths: Vec<PathBuf> = entries.filter_map(|e| e.ok().map(|e| e.path())).collect();
-    paths.sort();
-    for path in paths {
-        if path.is_dir() {
-            collect(&path, text)?;
-        } else if path.extension().is_some_and(|e| e == "rs") {
-            *text +=
-                &std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-            text.push('\n');
+        let d = dir.join(sub);
+        if d.is_dir() {
+            super::modules::rust_files(&d, &mut files)?;
         }
     }
-    Ok(())
+    let mut text = String::new();
+    for f in files {
+        text += &std::fs::read_to_string(&f).map_err(|e| format!("{}: {e}", f.display()))?;
+        text.push('\n');
+    }
+    Ok(text)
 }
 
 #[cfg(test)]
