@@ -323,7 +323,7 @@ pub fn measurement_line(i: usize, m: &bs_scene::measure::MeasurementReport, u: &
             r.bone_rms_after
         )
     });
-    if m.kind == "landmarks" {
+    if m.kind == bs_scene::measure::MeasurementKind::Landmarks {
         let through = match m.nset.as_str() {
             "" => "beside the scan (gravity's evidence)".to_string(),
             set => format!("through {set}"),

@@ -529,7 +529,7 @@ fn landmarks_fitted_through_the_top_recover_the_push_that_moved_them() {
             .fold(0.0, f64::max);
         assert!(worst < 0.03, "{name}: largest error {worst} mm of a 3.2 mm push");
         let m = &solved.measurements[0];
-        assert_eq!(m.kind, "landmarks");
+        assert_eq!(m.kind, bs_scene::measure::MeasurementKind::Landmarks);
         assert_eq!(m.points, 12);
         assert_eq!(m.outliers, usize::from(outlier.is_some()), "{name}: {m:?}");
         assert!(m.rms_residual < 0.03, "{name}: {m:?}");
@@ -841,7 +841,7 @@ fn landmarks_beside_the_scan_add_their_closed_form_information_to_the_level() {
     );
     // The landmarks are reported as measured, not pulled (the scan pulls).
     let m = &solved.measurements[1];
-    assert_eq!((m.kind.as_str(), m.nset.as_str()), ("landmarks", ""));
+    assert_eq!((m.kind, m.nset.as_str()), (bs_scene::measure::MeasurementKind::Landmarks, ""));
     assert!(m.max_residual < 0.1, "{m:?}");
 }
 

@@ -14,7 +14,7 @@ pub mod pairs;
 pub(crate) mod read;
 pub(crate) mod terms;
 
-pub use outcome::{MeasurementReport, PointRow, RigidReport};
+pub use outcome::{MeasurementKind, MeasurementReport, PointRow, RigidReport};
 pub use terms::FitState;
 
 /// One `[[measurement]]` with its files read and its node set resolved.

@@ -27,11 +27,21 @@ pub struct RigidReport {
     pub bone_rms_after: f64,
 }
 
+/// What a measurement measured, as report.json names it (`"points"`, `"landmarks"`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MeasurementKind {
+    /// A scanned surface.
+    Points,
+    /// Landmark pairs.
+    Landmarks,
+}
+
 /// One measurement after the fit (report.json's `measurements` entries).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MeasurementReport {
-    /// `"points"` (a scanned surface) or `"landmarks"`.
-    pub kind: String,
+    /// A scanned surface or landmark pairs.
+    pub kind: MeasurementKind,
     /// The data file (landmarks from two markups files: both, comma-separated).
     pub file: String,
     /// The node set it pulled.
@@ -154,7 +164,7 @@ fn surface_report(
     let (inliers, outliers) =
         (count(fit.fits(), PointStatus::Inlier), count(fit.fits(), PointStatus::Outlier));
     MeasurementReport {
-        kind: "points".into(),
+        kind: MeasurementKind::Points,
         file: file.display().to_string(),
         nset: m.nset.clone(),
         sigma: m.sigma,
@@ -221,7 +231,7 @@ fn landmark_report(
     let (inliers, outliers) =
         (count(fit.fits(), PointStatus::Inlier), count(fit.fits(), PointStatus::Outlier));
     MeasurementReport {
-        kind: "landmarks".into(),
+        kind: MeasurementKind::Landmarks,
         file: files.describe(),
         nset: m.nset.clone(),
         sigma: m.sigma,
