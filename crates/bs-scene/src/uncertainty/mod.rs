@@ -123,16 +123,23 @@ impl UncertaintyReport {
     }
 }
 
-/// Whether `run`'s scene has something fitted that [`sample`] can draw: a scan, or
-/// gravity's estimated parameters. `Err` names what is missing.
+/// Whether `run`'s scene has something fitted that [`sample`] can draw (a scan, or
+/// gravity's estimated parameters) and held-out landmarks it can read. `Err` names what is
+/// missing or wrong.
 pub fn check(run: &Run) -> Result<(), SceneError> {
+    fitted(run)?;
+    HeldOut::read(&run.prepared).map(|_| ())
+}
+
+/// The first half of [`check`]: something fitted to draw.
+fn fitted(run: &Run) -> Result<(), SceneError> {
     let p = &run.prepared;
     let scans = p
         .measurements
         .iter()
         .any(|m| matches!(m.data, crate::measure::MeasuredData::Surface { .. }));
     if scans || crate::estimate::estimates(p) {
-        return HeldOut::read(p).map(|_| ());
+        return Ok(());
     }
     let why = if p.measurements.is_empty() {
         "the scene fits nothing (no [[measurement]]), so the answer has no fitted \
@@ -151,7 +158,7 @@ pub fn sample(
     solved: &Solved,
     params: &UncertaintyParams,
 ) -> Result<Uncertainty, SceneError> {
-    check(run)?;
+    fitted(run)?;
     if params.samples < 2 {
         return Err(SceneError::Scene {
             file: run.prepared.path.clone(),
