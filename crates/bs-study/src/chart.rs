@@ -476,18 +476,18 @@ pub fn read_csv(path: &Path, case: &Case) -> Result<Vec<ChartPoint>, String> {
     })
 }
 
+/// What `cargo xtask chart` draws.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Options {
+    /// One case alone (`ellipsoid` or `mni152`), printed; every case writes the docs.
+    pub case: Option<String>,
+    /// Redraw from the CSV files of the last run instead of solving again.
+    pub replot: bool,
+}
+
 /// `cargo xtask chart [--case NAME] [--replot]`.
-pub fn main(args: &[String]) -> Result<(), String> {
-    let mut only = None;
-    let mut replot = false;
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--case" => only = Some(it.next().ok_or("--case needs a name")?.clone()),
-            "--replot" => replot = true,
-            _ => return Err("usage: cargo xtask chart [--case ellipsoid|mni152] [--replot]".into()),
-        }
-    }
+pub fn main(o: &Options) -> Result<(), String> {
+    let (only, replot) = (o.case.clone(), o.replot);
     let selected: Vec<Case> =
         cases().into_iter().filter(|c| only.as_deref().is_none_or(|n| n == c.name)).collect();
     if selected.is_empty() {

@@ -13,10 +13,13 @@
 //! * [`chart`] (drawn with [`plot`]): speed against accuracy;
 //! * [`fit`]: the measurement-fit fixture and study; [`ghost`]: the warped image where the
 //!   brain moved away;
+//! * [`bench`]: the benchmarks (`cargo xtask bench …`), ratios against a baseline run in the
+//!   same process;
 //! * [`util`]: where the repository is, atomic page blocks between markers.
 //!
 //! Nothing here is part of the product: bs-scene and the front ends never depend on it.
 
+pub mod bench;
 pub mod calculix;
 pub mod chart;
 pub mod fit;

@@ -200,36 +200,6 @@ impl Default for Options {
     }
 }
 
-/// Parses `cargo xtask reference` arguments.
-pub fn parse_args(args: &[String]) -> Result<Options, String> {
-    let mut o = Options::default();
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        let mut value =
-            |name: &str| it.next().cloned().ok_or_else(|| format!("{name} needs a value"));
-        match a.as_str() {
-            "--case" => o.only = Some(value("--case")?),
-            "--deck-only" => o.deck_only = true,
-            "--timeout" => {
-                o.timeout = value("--timeout")?.parse().map_err(|e| format!("--timeout: {e}"))?;
-            }
-            "--memory-gib" => {
-                o.memory_gib =
-                    value("--memory-gib")?.parse().map_err(|e| format!("--memory-gib: {e}"))?;
-            }
-            "--threads" => {
-                o.threads = value("--threads")?.parse().map_err(|e| format!("--threads: {e}"))?;
-            }
-            "--collect" => o.collect_only = true,
-            "--slope" => {
-                o.slope = Some(value("--slope")?.parse().map_err(|e| format!("--slope: {e}"))?);
-            }
-            other => return Err(format!("unknown option '{other}'")),
-        }
-    }
-    Ok(o)
-}
-
 /// Runs the selected cases.
 pub fn run(o: &Options) -> Result<(), String> {
     let version = if o.deck_only { None } else { Some(ccx_version()?) };

@@ -31,7 +31,7 @@ mod chart;
 mod clinical;
 pub mod measure;
 mod meshes;
-mod trace;
+pub mod trace;
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -636,15 +636,20 @@ pub fn markdown(cells: &[Cell]) -> String {
     s
 }
 
-/// `cargo xtask stability [--quick]`.
-pub fn main(args: &[String]) -> Result<(), String> {
-    if args.first().is_some_and(|a| a == "trace") {
-        return trace::main(&args[1..]);
-    }
-    let scope = match args {
-        [] => Scope::Full,
-        [q] if q == "--quick" => Scope::Quick,
-        _ => return Err("usage: cargo xtask stability [--quick] | stability trace SCENE …".into()),
+/// What `cargo xtask stability` runs.
+#[derive(Debug, Clone)]
+pub enum Options {
+    /// The map (the full one writes docs/stability.md and its chart).
+    Map(Scope),
+    /// One scene's DR run traced step by step.
+    Trace(trace::Options),
+}
+
+/// `cargo xtask stability [--quick] | stability trace SCENE …`.
+pub fn main(o: &Options) -> Result<(), String> {
+    let scope = match o {
+        Options::Map(scope) => *scope,
+        Options::Trace(t) => return trace::main(t),
     };
     let started = std::time::Instant::now();
     let cells = run(scope)?;

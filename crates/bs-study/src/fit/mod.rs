@@ -174,25 +174,35 @@ pub fn run_uncertainty(quick: bool) -> Result<(), String> {
     Ok(())
 }
 
-/// `cargo xtask fit ...`.
-pub fn main(args: &[String]) -> Result<(), String> {
-    match args.first().map(String::as_str) {
-        Some("fixture") => fixture(),
-        Some("study") => run_study(args.iter().any(|a| a == "--quick")),
-        Some("gravity") => run_gravity(args.iter().any(|a| a == "--quick")),
-        Some("gravity-fixture") => gravity::fixture(),
-        Some("uncertainty") => run_uncertainty(args.iter().any(|a| a == "--quick")),
-        Some("try") => {
-            // One case into target/fit-try (for exploring): SIGMA COVERAGE OUTLIERS MISALIGNMENT.
-            let v: Vec<f64> = args[1..].iter().map(|a| a.parse().unwrap_or(0.0)).collect();
-            let case = Case {
-                sigma: v.first().copied().unwrap_or(1.0),
-                coverage: v.get(1).copied().unwrap_or(1.0),
-                outliers: v.get(2).copied().unwrap_or(0.0),
-                misalignment: v.get(3).copied().unwrap_or(0.0),
-                seed: 47,
-                free: v.get(4).is_some_and(|&f| f != 0.0),
-            };
+/// What `cargo xtask fit` runs.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Options {
+    /// The measurement-fit fixture (fixtures/fit: a truth, one degraded scan).
+    Fixture,
+    /// Fits of degraded scans against the truth, imposing and no correction (docs/fit.md).
+    Study { quick: bool },
+    /// Scans of gravity-driven truths fitted with gravity known, off and estimated.
+    Gravity { quick: bool },
+    /// The gravity-fit fixture (fixtures/fit-gravity).
+    GravityFixture,
+    /// The calibration of the uncertainty's σ (docs/uncertainty.md).
+    Uncertainty { quick: bool },
+    /// One scan case written into target/fit-try, for exploring.
+    Try { sigma: f64, coverage: f64, outliers: f64, misalignment: f64, free: bool },
+    /// `n` landmarks of noise `sigma` fitted into target/fit-try, for exploring.
+    Landmarks { n: usize, sigma: f64, seed: u64 },
+}
+
+/// `cargo xtask fit …`.
+pub fn main(o: &Options) -> Result<(), String> {
+    match *o {
+        Options::Fixture => fixture(),
+        Options::Study { quick } => run_study(quick),
+        Options::Gravity { quick } => run_gravity(quick),
+        Options::GravityFixture => gravity::fixture(),
+        Options::Uncertainty { quick } => run_uncertainty(quick),
+        Options::Try { sigma, coverage, outliers, misalignment, free } => {
+            let case = Case { sigma, coverage, outliers, misalignment, seed: 47, free };
             let dir = root().join("target/fit-try");
             let t = truth(&dir, &regions().display().to_string())?;
             let text = write_scan(&t, &case, &dir, &regions().display().to_string())?;
@@ -200,16 +210,11 @@ pub fn main(args: &[String]) -> Result<(), String> {
             println!("wrote {}", dir.join("scene.toml").display());
             Ok(())
         }
-        Some("landmarks") => {
-            // Landmark cases into target/fit-try (for exploring): N SIGMA.
-            let n = args.get(1).and_then(|a| a.parse().ok()).unwrap_or(15);
-            let sigma = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(1.0);
-            let seed = args.get(3).and_then(|a| a.parse().ok()).unwrap_or(1000);
+        Options::Landmarks { n, sigma, seed } => {
             let dir = root().join("target/fit-try");
             let t = truth(&dir, &regions().display().to_string())?;
             print!("{}", landmarks::table(&[landmarks::case(&t, n, sigma, seed, &dir)]));
             Ok(())
         }
-        _ => Err("fit what? `cargo xtask fit fixture`, `fit study [--quick]`, `fit try SIGMA COVERAGE OUTLIERS MISALIGNMENT` or `fit landmarks N SIGMA`".into()),
     }
 }

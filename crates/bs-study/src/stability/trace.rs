@@ -16,38 +16,20 @@ use bs_scene::compose::compose;
 use bs_scene::scene::SolverKind;
 
 /// What the command was asked.
-#[derive(Debug)]
-struct Args {
-    scene: PathBuf,
+/// What to trace.
+#[derive(Debug, Clone)]
+pub struct Options {
+    pub scene: PathBuf,
     /// The push to trace, mm (the scene's prescribed displacements scaled to it).
-    load: Option<f64>,
-    ramp: Option<usize>,
-    every: usize,
+    pub load: Option<f64>,
+    /// DR's load ramp, steps (the scene's when none).
+    pub ramp: Option<usize>,
+    /// A row every this many steps.
+    pub every: usize,
     /// The depth (mm) at which DR's state is compared with Newton–Krylov's equilibrium.
-    at: Option<f64>,
-    out: Option<PathBuf>,
-}
-
-const USAGE: &str = "usage: cargo xtask stability trace SCENE [--load MM] [--ramp STEPS] \
-                     [--every K] [--at MM] [--out trace.csv]";
-
-fn parse(args: &[String]) -> Result<Args, String> {
-    let mut it = args.iter();
-    let scene = it.next().ok_or(USAGE)?.into();
-    let mut a = Args { scene, load: None, ramp: None, every: 5, at: None, out: None };
-    while let Some(flag) = it.next() {
-        let value = it.next().ok_or_else(|| format!("{flag} needs a value; {USAGE}"))?;
-        let num = |v: &str| v.parse::<f64>().map_err(|_| format!("{flag} {v}: not a number"));
-        match flag.as_str() {
-            "--load" => a.load = Some(num(value)?),
-            "--ramp" => a.ramp = Some(num(value)? as usize),
-            "--every" => a.every = (num(value)? as usize).max(1),
-            "--at" => a.at = Some(num(value)?),
-            "--out" => a.out = Some(value.into()),
-            _ => return Err(format!("unknown option {flag}; {USAGE}")),
-        }
-    }
-    Ok(a)
+    pub at: Option<f64>,
+    /// Where the rows go as CSV.
+    pub out: Option<PathBuf>,
 }
 
 /// One traced step.
@@ -70,7 +52,7 @@ struct Traced {
     outcome: String,
 }
 
-fn trace(p: &Prepared, a: &Args, scale: f64) -> Result<Traced, String> {
+fn trace(p: &Prepared, a: &Options, scale: f64) -> Result<Traced, String> {
     let mut c = compose(p).map_err(|e| e.to_string())?;
     let model = &c.model;
     let mut masses = vec![0.0; model.node_count()];
@@ -129,8 +111,7 @@ fn csv(rows: &[Row]) -> String {
 }
 
 /// `cargo xtask stability trace …`.
-pub fn main(args: &[String]) -> Result<(), String> {
-    let a = parse(args)?;
+pub fn main(a: &Options) -> Result<(), String> {
     let p = Prepared::load(&a.scene).map_err(|e| format!("{}: {e}", a.scene.display()))?;
     let c0 = compose(&p).map_err(|e| e.to_string())?;
     let scene_push = bs_dr::load_scale(&c0.model, &c0.loads);
@@ -139,7 +120,7 @@ pub fn main(args: &[String]) -> Result<(), String> {
         .apply(&p)
         .map_err(|e| format!("{e:?}"))?;
     let scale = scene_push * factor;
-    let t = trace(&p, &a, scale)?;
+    let t = trace(&p, a, scale)?;
     if let Some(out) = &a.out {
         std::fs::write(out, csv(&t.rows)).map_err(|e| format!("{}: {e}", out.display()))?;
     }
@@ -179,22 +160,6 @@ pub fn main(args: &[String]) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn args(s: &str) -> Vec<String> {
-        s.split_whitespace().map(String::from).collect()
-    }
-
-    #[test]
-    fn options_are_read_and_bad_ones_refused_by_name() {
-        let a = parse(&args("s.toml --load 40 --ramp 800 --every 0 --at 35 --out t.csv")).unwrap();
-        assert_eq!(a.scene, PathBuf::from("s.toml"));
-        assert_eq!((a.load, a.ramp, a.every, a.at), (Some(40.0), Some(800), 1, Some(35.0)));
-        assert_eq!(a.out, Some(PathBuf::from("t.csv")));
-        assert!(parse(&args("s.toml --speed 2")).unwrap_err().contains("--speed"));
-        assert!(parse(&args("s.toml --load forty")).unwrap_err().contains("forty"));
-        assert!(parse(&args("s.toml --at")).unwrap_err().contains("--at needs a value"));
-        assert!(parse(&[]).unwrap_err().starts_with("usage"));
-    }
 
     #[test]
     fn the_csv_has_one_row_per_traced_step() {

@@ -74,13 +74,22 @@ pub fn markdown(rows: &[Row]) -> String {
     s
 }
 
+/// What `cargo xtask validate` runs.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Options {
+    /// Every case (or the quick ones) in one table.
+    Table(Scope),
+    /// One CalculiX case alone, printed: a fixture with stored references,
+    /// `ellipsoid-gravity` or `regions-held`.
+    Calculix(String),
+}
+
 /// `cargo xtask validate [--quick]`: all cases (or the quick ones), the table written into
 /// docs/validation.md between its markers (full run only); error if any case fails.
-pub fn main(args: &[String]) -> Result<(), String> {
-    let scope = match args {
-        [] => Scope::Full,
-        [q] if q == "--quick" => Scope::Quick,
-        [flag, case] if flag == "--calculix" => {
+pub fn main(o: &Options) -> Result<(), String> {
+    let scope = match o {
+        Options::Table(scope) => *scope,
+        Options::Calculix(case) => {
             // One CalculiX case alone, printed, docs/validation.md untouched.
             let mut failed = 0;
             let mut print = |r: Row| {
@@ -96,11 +105,6 @@ pub fn main(args: &[String]) -> Result<(), String> {
                 calculix_cases(&mut print, &[case.as_str()])?;
             }
             return if failed == 0 { Ok(()) } else { Err(format!("{failed} case(s) failed")) };
-        }
-        _ => {
-            return Err("usage: cargo xtask validate [--quick | --calculix CASE] (CASE: a \
-                        fixture with stored references, ellipsoid-gravity or regions-held)"
-                .into());
         }
     };
     let rows = run(scope)?;

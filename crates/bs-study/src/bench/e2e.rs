@@ -34,13 +34,13 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use crate::study::{Variant, difference};
 use bs_mesh::{TetLocator, Vector3, transfer};
 use bs_scene::Prepared;
 use bs_scene::scene::SolverKind;
-use bs_study::study::{Variant, difference};
 
-use bs_study::calculix::{field, read_reference};
-use bs_study::util::{replace_block, root};
+use crate::calculix::{field, read_reference};
+use crate::util::{replace_block, root};
 
 /// The cases: name, scene, and the scene whose mesh the CalculiX reference was computed on.
 const CASES: [(&str, &str, &str); 5] = [
@@ -134,7 +134,7 @@ fn ccx_field(p: &Prepared, ccx_case: &str) -> Result<Option<Vec<Vector3<f64>>>, 
 }
 
 /// The child: one case with one solver; prints one line of key=value pairs.
-fn run_one(case: &str, solver: &str, out: &Path) -> Result<(), String> {
+pub fn run_one(case: &str, solver: &str, out: &Path) -> Result<(), String> {
     let load = LOADS.iter().find(|l| l.0 == case);
     let (scene, ccx_case) = if case == LARGE.0 {
         (large_scene()?, None)
@@ -187,7 +187,8 @@ fn run_one(case: &str, solver: &str, out: &Path) -> Result<(), String> {
 fn spawn(case: &str, solver: &str, out: &Path) -> Result<Run, String> {
     let exe = std::env::current_exe().map_err(|e| e.to_string())?;
     let output = Command::new(exe)
-        .args(["bench", "e2e", "--one", case, solver])
+        .args(CHILD)
+        .args([case, solver])
         .arg(out)
         .output()
         .map_err(|e| e.to_string())?;
@@ -240,26 +241,22 @@ fn read_field(path: &Path) -> Result<Vec<Vector3<f64>>, String> {
         .collect()
 }
 
-/// `cargo xtask bench e2e [--case NAME] [--repeat N]`.
-pub fn main(args: &[String]) -> Result<(), String> {
-    if args.first().map(String::as_str) == Some("--one") {
-        let [_, case, solver, out] = args else {
-            return Err("usage: bench e2e --one CASE SOLVER OUT".into());
-        };
-        return run_one(case, solver, Path::new(out));
-    }
-    let mut only: Option<String> = None;
-    let mut repeat = 1usize;
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--case" => only = it.next().cloned(),
-            "--repeat" => {
-                repeat = it.next().and_then(|s| s.parse().ok()).ok_or("--repeat needs a number")?
-            }
-            other => return Err(format!("unknown option {other}")),
-        }
-    }
+/// What `cargo xtask bench e2e` runs.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Options {
+    /// One case alone (its name in the table), or every case.
+    pub case: Option<String>,
+    /// Runs per case and solver; the best is kept.
+    pub repeat: usize,
+}
+
+/// The arguments that make the driving program run one case in a child process:
+/// `<this program> bench e2e --one CASE SOLVER OUT` must call [`run_one`].
+pub const CHILD: [&str; 3] = ["bench", "e2e", "--one"];
+
+/// Runs the benchmark: every case (or `o.case`) by both solvers, the large mesh and the loads.
+pub fn run(o: &Options) -> Result<(), String> {
+    let (only, repeat) = (o.case.clone(), o.repeat.max(1));
     let tmp = std::env::temp_dir().join(format!("bs-bench-e2e-{}", std::process::id()));
     std::fs::create_dir_all(&tmp).map_err(|e| e.to_string())?;
     println!(

@@ -10,7 +10,7 @@ use std::time::Instant;
 use bs_image::{Grid, Volume};
 use bs_meshgen::{MeshParams, mesh_labelmap};
 
-use crate::page::{Page, say};
+use super::page::{Page, say};
 
 /// The synthetic stand-in: an ellipsoid (semi-axes 72, 90, 70 mm: 1.9 M voxels) on the
 /// MNI152 grid.
@@ -74,7 +74,7 @@ fn bench(page: &mut Page, name: &str, labels: &Volume<u32>) -> Result<(), String
 }
 
 /// Runs the benchmark.
-pub fn main() -> Result<(), String> {
+pub fn run() -> Result<(), String> {
     let mut page = Page::new("mesh");
     let mask = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/mni152/mask.nii.gz");
     if mask.is_file() {

@@ -85,7 +85,7 @@ struct Run {
 }
 
 /// Runs `steps` steps with a fresh handler from `make`.
-fn run<H: ClosestPoint>(make: impl FnOnce() -> H, s: &Scenario, steps: usize) -> Run {
+fn run_handler<H: ClosestPoint>(make: impl FnOnce() -> H, s: &Scenario, steps: usize) -> Run {
     let slaves: Vec<usize> = (0..SLAVES).collect();
     let mut e = Enforcer::new(make(), slaves, SLAVES).expect("slave indices in range");
     let mut pos = s.start.clone();
@@ -179,10 +179,10 @@ fn bench_all(skull: &TriSurface, s: &Scenario) -> Result<(Runs, String), String>
     let mut runs: Vec<(&'static str, Run)> = Vec::new();
     for _ in 0..REPS {
         let round = [
-            ("paper", run(|| paper.clone(), s, STEPS)),
+            ("paper", run_handler(|| paper.clone(), s, STEPS)),
             (
                 "coherent",
-                run(
+                run_handler(
                     || {
                         let mut h = coherent.clone();
                         h.reset();
@@ -194,9 +194,13 @@ fn bench_all(skull: &TriSurface, s: &Scenario) -> Result<(Runs, String), String>
             ),
             (
                 "parry",
-                run(|| ParryContact::from_master(m.clone()).expect("validated mesh"), s, STEPS),
+                run_handler(
+                    || ParryContact::from_master(m.clone()).expect("validated mesh"),
+                    s,
+                    STEPS,
+                ),
             ),
-            ("brute-force", run(|| BruteForce::from_master(m.clone()), s, BRUTE_STEPS)),
+            ("brute-force", run_handler(|| BruteForce::from_master(m.clone()), s, BRUTE_STEPS)),
         ];
         if runs.is_empty() {
             runs = round.into_iter().collect();
@@ -221,7 +225,7 @@ fn bench_all(skull: &TriSurface, s: &Scenario) -> Result<(Runs, String), String>
 }
 
 /// Runs the benchmark, prints the table and writes docs/contact-bench.md.
-pub fn main() -> Result<(), String> {
+pub fn run() -> Result<(), String> {
     let s = scenario();
     let (base_skull, refined_skull) = skulls();
     let (base, base_info) = bench_all(&base_skull, &s)?;
@@ -305,8 +309,8 @@ pub fn main() -> Result<(), String> {
         std::thread::available_parallelism().map(|n| n.get()).unwrap_or(0)
     );
     print!("{md}");
-    let path = bs_study::util::root().join("docs/contact-bench.md");
-    bs_study::util::write(&path, &md)?;
+    let path = crate::util::root().join("docs/contact-bench.md");
+    crate::util::write(&path, &md)?;
     println!("\nwritten to docs/contact-bench.md");
     if !same {
         return Err("coherent handler diverged from the paper handler".into());

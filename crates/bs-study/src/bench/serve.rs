@@ -19,10 +19,10 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
+use crate::util::root;
 use bs_igtl::{Envelope, Image, Message, Point, Points, Text, pack_message, read_message};
-use bs_study::util::root;
 
-use crate::page::{Page, say};
+use super::page::{Page, say};
 
 /// A server running in this process.
 struct Running {
@@ -266,10 +266,8 @@ fn displacements(page: &mut Page, root: &Path) -> Result<(), String> {
     Ok(())
 }
 
-pub fn main(args: &[String]) -> Result<(), String> {
-    if !args.is_empty() {
-        return Err(format!("bench serve takes no arguments, got {args:?}"));
-    }
+/// Runs the benchmark and writes its block of `docs/benchmarks.md`.
+pub fn run() -> Result<(), String> {
     let root = root();
     let mut page = Page::new("serve");
     say!(page, "threads: {} (the server's solver pool: all cores)", rayon::current_num_threads());

@@ -1,7 +1,6 @@
 //! `cargo xtask bench solver`: speed of the TLED kernels and of DR against Newton.
 //!
-//! Run in release (`cargo xtask bench solver` builds xtask in the dev profile, so this
-//! command re-invokes itself through `cargo run --release` unless `--no-rebuild` is given).
+//! Run optimised: from a debug build, `cargo xtask bench` re-runs itself from a release build.
 //!
 //! 1. ns per element-step of `Model::internal_forces_into` (the SIMD kernels) and of the old
 //!    scalar kernels (`Model::internal_forces_scalar_into`, measured alternately in the same
@@ -23,7 +22,7 @@ use bs_dr::{
 use bs_material::Material;
 use bs_mesh::{Mesh, Vector3};
 
-use crate::page::{Page, say};
+use super::page::{Page, say};
 
 /// Unit cube of `n³` cells, interior nodes jittered by up to 0.2 h; hexes, or 6 tets per
 /// cell (Kuhn split, conforming).
@@ -150,9 +149,9 @@ pub fn run() -> Result<(), String> {
 }
 
 /// Two levels against the multilevel hierarchy on the MNI152 demo and, when `bench e2e`
-/// has meshed it, the 852k-tet brain (`bs_study::precond`); then both in whole solves.
+/// has meshed it, the 852k-tet brain (`crate::precond`); then both in whole solves.
 fn preconditioners(page: &mut Page) -> Result<(), String> {
-    let bandwidth = bs_study::precond::stream_bandwidth();
+    let bandwidth = crate::precond::stream_bandwidth();
     say!(
         page,
         "\nPreconditioner: K0 x = b to 1e-8 (GMRES, restart 40), one cycle (best of 5 x 10); \
@@ -172,7 +171,7 @@ fn preconditioners(page: &mut Page) -> Result<(), String> {
         "GB/s",
         "floor"
     );
-    let root = bs_study::util::root();
+    let root = crate::util::root();
     let mut scenes = vec![("mni152 demo", root.join("fixtures/mni152/scene.toml"))];
     let large = root.join("target/bench-e2e/mni152-size3/scene.toml");
     if large.exists() {
@@ -180,7 +179,7 @@ fn preconditioners(page: &mut Page) -> Result<(), String> {
     }
     for (name, scene) in &scenes {
         for levels in [2, bs_dr::MultilevelParams::default().max_levels] {
-            let c = bs_study::precond::measure(scene, levels)?;
+            let c = crate::precond::measure(scene, levels)?;
             let achieved = c.bytes as f64 / c.seconds;
             say!(
                 page,
@@ -223,7 +222,7 @@ fn preconditioners(page: &mut Page) -> Result<(), String> {
         let p = bs_scene::Prepared::load(scene).map_err(|e| e.to_string())?;
         let mut cells = Vec::new();
         for levels in [2, bs_dr::MultilevelParams::default().max_levels] {
-            let v = bs_study::study::Variant { max_levels: Some(levels), ..Default::default() };
+            let v = crate::study::Variant { max_levels: Some(levels), ..Default::default() };
             let o = v.solve(&p).map_err(|e| format!("{name}: {e}"))?;
             cells.push(format!(
                 "{levels:>7} {:>8} {:>6} {:>8.3}",

@@ -18,7 +18,7 @@ use bs_mesh::{Point3, Vector3};
 use bs_scene::uncertainty::UncertaintyParams;
 use bs_scene::{BoundaryValues, Prepared, Run, Session, Update};
 
-use bs_study::util::{replace_block, root};
+use crate::util::{replace_block, root};
 
 const REPEATS: usize = 3;
 const UPDATES: usize = 4;
@@ -73,7 +73,7 @@ fn uncertainty() -> Result<(f64, f64, f64), String> {
 }
 
 /// `cargo xtask bench fit`.
-pub fn main() -> Result<(), String> {
+pub fn run() -> Result<(), String> {
     let mut imposed = session("fit/scene-truth.toml")?;
     let mut fit = session("fit/scene.toml")?;
     let (mut ci, mut cf, mut cits) = (Vec::new(), Vec::new(), Vec::new());

@@ -2,7 +2,7 @@
 //! block of `docs/benchmarks.md` (between `<!-- NAME:begin -->` and `<!-- NAME:end -->`),
 //! so that the page shows what the command printed last, with the command above it.
 
-use bs_study::util::{replace_block, root};
+use crate::util::{replace_block, root};
 
 /// Prints a line and keeps it for the page: `say!(page, "{x}")` as `println!("{x}")`.
 macro_rules! say {

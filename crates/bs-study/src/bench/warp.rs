@@ -14,7 +14,7 @@ use bs_mesh::{Mesh, Point3};
 use bs_register::registration::{InverseMap, OutsideChoice, RunResult};
 use bs_scene::{Prepared, Run};
 
-use crate::page::{Page, say};
+use super::page::{Page, say};
 
 fn best<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {
     let mut out = None;
@@ -29,8 +29,8 @@ fn best<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {
 }
 
 /// Runs the benchmark.
-pub fn main() -> Result<(), String> {
-    let root = bs_study::util::root();
+pub fn run() -> Result<(), String> {
+    let root = crate::util::root();
     let scene = root.join("fixtures/mni152/scene.toml");
     let t1 = root.join("fixtures/mni152/t1.nii.gz");
     let prepared = Prepared::load(&scene).map_err(|e| e.to_string())?;

@@ -14,7 +14,7 @@ use bs_mesh::Vector3;
 use bs_register::registration::{InverseMap, RunResult};
 use bs_scene::{BoundaryValues, Prepared, Session, Solved, Update};
 
-use crate::page::{Page, say};
+use super::page::{Page, say};
 
 fn craniotomy(d: f64) -> Vec<Update> {
     let values = BoundaryValues::Uniform(Vector3::new(0.0, 0.0, -d));
@@ -46,21 +46,19 @@ fn median(v: &mut [f64]) -> f64 {
     if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
 }
 
-/// Runs the benchmark (`--scene PATH`: another scene with a CRANIOTOMY node set).
-pub fn main(args: &[String]) -> Result<(), String> {
-    let root = bs_study::util::root();
+/// Runs the benchmark on the MNI152 demo, or on `scene` (another scene with a CRANIOTOMY
+/// node set; its output is printed, docs/benchmarks.md is left alone).
+pub fn run(scene: Option<&Path>) -> Result<(), String> {
+    let root = crate::util::root();
     let mut page = Page::new("update");
-    let scene = match args {
-        [flag, path] if flag == "--scene" => std::path::PathBuf::from(path),
-        [] => root.join("fixtures/mni152/scene.toml"),
-        _ => return Err("usage: cargo xtask bench update [--scene SCENE.toml]".into()),
-    };
+    let default = root.join("fixtures/mni152/scene.toml");
+    let scene = scene.unwrap_or(&default);
     let t1 = root.join("fixtures/mni152/t1.nii.gz");
     let e = |e: bs_scene::SceneError| e.to_string();
     let t = Instant::now();
-    let mut warm = Session::new(Prepared::load(&scene).map_err(e)?).map_err(e)?;
+    let mut warm = Session::new(Prepared::load(scene).map_err(e)?).map_err(e)?;
     let prepare = t.elapsed().as_secs_f64();
-    let mut cold = Session::new(Prepared::load(&scene).map_err(e)?).map_err(e)?;
+    let mut cold = Session::new(Prepared::load(scene).map_err(e)?).map_err(e)?;
     say!(page, "MNI152 demo, {} nodes; preparation {prepare:.3} s", warm.displacements().len());
     say!(
         page,
@@ -184,5 +182,5 @@ pub fn main(args: &[String]) -> Result<(), String> {
         }
         None => say!(page, "peak memory: not available on this system"),
     }
-    if args.is_empty() { page.write("cargo xtask bench update") } else { Ok(()) }
+    if scene == default { page.write("cargo xtask bench update") } else { Ok(()) }
 }
