@@ -10,7 +10,10 @@
 //!   final name's suffix;
 //! * [`temporary_sibling`]: that path.
 //!
-//! Architecture invariant: the standard library only; no brainshift crate below it.
+//! Files: `lib.rs` only (the three functions and their tests).
+//!
+//! Architecture invariant: the standard library only; no brainshift crate below it, and no
+//! file format.
 
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};

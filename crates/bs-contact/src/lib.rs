@@ -28,7 +28,28 @@
 //! positive inside the cavity, negative outside.
 //!
 //! Features: `parry` (default) builds the parry3d-f64 baseline handler; `testing` exposes
-//! the random closed test surfaces (`shapes`) to this crate's tests and benchmarks only.
+//! the random closed test surfaces (`shapes`) to this crate's tests and to bs-study (its
+//! validation and stability cases and the contact benchmark); it is not library API.
+//!
+//! Files:
+//! * `query.rs`: `ClosestPoint`, `Projection` and `Feature`, the one query every handler
+//!   answers;
+//! * `enforce.rs`: `Enforcer` and `EnforceReport`, the shared enforcement loop;
+//! * `master.rs`: `MasterSurface`, the validated skull with its precomputed topology and
+//!   normals (`NodeNormalRule`), and its exact projections;
+//! * `paper/`: `PaperContact` and `PaperParams` (`mod.rs`) and the §3.2 additional lists
+//!   with their predicates (`lists.rs`, `AdditionalLists`);
+//! * `coherent.rs`: `CoherentContact`, the paper's handler with per-slave temporal coherence;
+//! * `brute.rs`: `BruteForce`, every face, the test reference;
+//! * `parry_handler.rs`: `ParryContact` (the `parry` feature);
+//! * `null.rs`: `NullHandler`;
+//! * `handler.rs`: `Algorithm` and `Handler`, the run-time choice by name;
+//! * `diagnostics.rs`: `check_initial` and `gap`, exact at any distance;
+//! * `patch.rs`: `Patch`, the exact closest point on an open, moving triangle patch;
+//! * `grid.rs`: `BucketGrid`, the uniform bucket grid over a point set;
+//! * `geometry.rs`: closest points on triangles and segments, circumcentres;
+//! * `error.rs`: `ContactError`;
+//! * `shapes.rs`: the random closed test surfaces (tests and the `testing` feature).
 //!
 //! ```
 //! use bs_contact::bs_mesh::{Point3, TriSurface};

@@ -5,8 +5,9 @@
 //!
 //! Architecture invariant: this crate knows elements, materials and nodal vectors. It knows
 //! nothing of contact geometry (buckets, triangles, closest points): the contact reaches the
-//! solver only through the small [`Contact`] trait owned here, called after every step. It
-//! must not depend on `bs-contact`; `bs-scene` composes the two.
+//! solver only through the small [`Contact`] trait owned here (`enforce` after every DR
+//! step; `nodes` and `project` for Newton–Krylov). It must not depend on `bs-contact`;
+//! `bs-scene` composes the two. Measurements reach it only through the `DataTerm` seam.
 //!
 //! # Using it
 //!
@@ -57,16 +58,56 @@
 //!   settled; its solves are bit-identical for any thread count (deterministic reductions).
 //! * Newton supports T4 and H8 (not T4ANP, not contact) and exists to check the others.
 //!
-//! Layers, lowest first (each folder imports only the rows above it; `cargo xtask deps`
-//! checks it): [`element`] (one element's data), `kernels` (TLED forces on SIMD lanes),
-//! [`linalg`] (nodal vectors, sparse matrices, GMRES, the multilevel preconditioner),
-//! [`assembly`] (internal forces, `K₀`, element tangents), [`model`] and `mass` (the
-//! model, its masses and time steps), then the solvers ([`dr`], [`newton`],
-//! [`newton_krylov`]) with their seams ([`contact`], [`loads`]), the common [`solver`]
-//! types and [`post`]. Each solver has its own parameters, info and error
-//! ([`DrParams`]/[`DrInfo`]/[`DrError`], [`NewtonParams`]/[`NewtonInfo`]/[`NewtonError`];
-//! Newton–Krylov still reports through the common [`Report`] and [`SolveError`]), and the
-//! [`Solver`] trait converts them into the common ones.
+//! Each solver has its own parameters, info and error ([`DrParams`]/[`DrInfo`]/[`DrError`],
+//! [`NewtonParams`]/[`NewtonInfo`]/[`NewtonError`], `NewtonKrylovParams`/`NewtonKrylovInfo`/
+//! `NewtonKrylovError`), and the [`Solver`] trait converts them into the common [`Report`]
+//! and [`SolveError`].
+//!
+//! # Files
+//!
+//! Layers, lowest first; each row imports only itself and the rows above it (`cargo xtask
+//! deps` checks it):
+//!
+//! 1. `element/`: one element on its own. `tet.rs` (T4 reference volume and gradients),
+//!    `hex.rs` (H8 mean-strain gradients), `hourglass.rs` (the H8 hourglass matrix),
+//!    `solid.rs` (`Solid`, `TetFormulation`), `kinematics.rs` (`F` and `det F`), `bound.rs`
+//!    (the largest eigenvalue of the small-strain element stiffness), `step.rs` (the largest
+//!    step that keeps `det F` above a fraction), `view.rs` (`ElementView`, one element for
+//!    loops over tets and hexes alike), `tests.rs`.
+//! 2. `kernels/`: TLED forces of blocks of four elements on SIMD lanes. `simd.rs` (the lane
+//!    type and runtime AVX2/FMA dispatch), `layout.rs` (the blocked copies of the elements),
+//!    `neo_hookean.rs` (the law on lanes), `tet_block.rs` (what T4 and T4ANP share), `t4.rs`,
+//!    `t4anp.rs`, `h8.rs`, `reference.rs` (the scalar one-element kernels), `tests.rs`.
+//! 3. `linalg/`: nodal vectors and matrices. `sparse.rs` (deterministic dot and norm,
+//!    `BlockCsr`, rank-one sums), `nodal.rs` (`NodalMatrix`, the form of `K₀`), `krylov.rs`
+//!    (restarted GMRES), `multilevel/` (the smoothed-aggregation preconditioner: `params`,
+//!    `projector`, `constraints`, `blocks`, `tentative`, `products`, `operator`, `levels`,
+//!    `setup`, `rebuild`, `contact`, `correction`, `cycle`, `split`, `tests`).
+//! 4. `assembly/`: element work over all elements. `elements.rs` (assembly order, blocks,
+//!    T4ANP groups), `order.rs` (Morton order of the tets), `runs.rs` (tet forces summed per
+//!    run of blocks), `slots.rs` (the node → force-slot map), `forces.rs` (the kernels in
+//!    parallel), `gather.rs` (each node's slots in a fixed order), `workspace.rs` (the
+//!    caller-owned scratch, `Workspace`), `inversion.rs` (the lowest-indexed inverted
+//!    element), `scalar.rs` (forces through the scalar kernels), `stiffness.rs` (`K₀`),
+//!    `volumetric.rs` (the T4ANP volumetric term moved in place), `stiffness_at.rs` (`K₀`
+//!    moved to the current configuration), `tangent.rs` (the consistent element tangent),
+//!    `step_bound.rs` (`StepBound` over every element).
+//! 5. `model.rs` (`Model`, `ModelOptions`, `ModelError`: the public face of the rows above),
+//!    `mass.rs` (lumped and DR masses, critical steps), `body.rs` (`BodyForce`, `Buoyancy`:
+//!    consistent nodal loads of a body force).
+//! 6. The solvers and their seams. `solver.rs` (the `Solver` trait, `Progress`, `Report`,
+//!    `SolveError`, `Solution`), `contact.rs` (the `Contact` trait, `NoContact`), `data.rs`
+//!    (the `DataTerm` trait, `Springs`, `NoData`), `loads.rs` (`Loads`: fixed and prescribed
+//!    components, dead nodal forces), `post.rs` (`J` and von Mises per element); `dr/`
+//!    (`mod.rs` the loop, `params.rs`, `rayleigh.rs`, `guard.rs`, `outcome.rs`); `newton/`
+//!    (`mod.rs` the load-step loop, `system.rs` the free-DOF tangent system, `params.rs`,
+//!    `outcome.rs`); `nk/` (`mod.rs` preparation, continuation loop and the `Solver` impl,
+//!    over `problem.rs`, `iterate.rs`, `continuation.rs`, `loading.rs`, `level.rs`,
+//!    `active_set.rs`, `linear.rs`, `mixed.rs`, `forcing.rs`, `refresh.rs`,
+//!    `line_search.rs`, `merit.rs`, `termination.rs`, `fallback.rs`, `response.rs`,
+//!    `params.rs`, `outcome.rs`).
+//!
+//! `tests.rs` holds the fixtures shared by the unit tests of several layers.
 
 #![allow(clippy::needless_range_loop)] // index loops mirror the tensor formulas
 

@@ -16,17 +16,24 @@
 //! the weights and measures the result.
 //!
 //! * [`surface`]: a scanned surface (laser range scanner, stereo camera) fitted
-//!   point-to-surface on the exposed patch, density-independent weights per face;
+//!   point-to-surface on the exposed patch, density-independent weights per face
+//!   (`SurfaceFit`, `surface_stiffness`); `surface/plane.rs` the robust plane of the scan
+//!   near one point (moving least squares of degree one), `surface/slide.rs` the prior on
+//!   the patch sliding along itself (`Slide`, `slide_stiffness`), `surface/tests.rs`;
 //! * [`landmarks`]: landmark pairs (tracked ultrasound, a pointer) measured point-to-point
-//!   at material points inside the brain;
-//! * [`rigid`]: the scan's rigid misalignment, estimated from points on bone;
+//!   at material points inside the brain (`LandmarkFit`, `Anchor`);
+//! * [`rigid`]: the scan's rigid misalignment, estimated from points on bone (`fit_rigid`),
+//!   with its posterior covariance;
 //! * [`robust`]: the scale estimate and the biweight;
+//! * `density.rs`: the area each scan point stands for;
+//! * `fits.rs`: several measurements as one data term (`Fits`, `Term`);
 //! * [`synthetic`]: a sensor model (a known surface scanned with noise, partial coverage,
 //!   outliers and misalignment), for studies and tests.
 //!
-//! Architecture invariant: bs-fit knows points, triangles, material points (nodes and weights) and bs-dr's data seam; it reads
-//! no files and knows no scene (bs-scene builds its terms), no elements and no solver
-//! internals.
+//! Architecture invariant: bs-fit knows points, triangles, material points (nodes and
+//! weights) and bs-dr's data seam (it depends on bs-mesh, bs-contact for the patch's closest
+//! points, and bs-dr); it reads no files and knows no scene (bs-scene builds its terms), no
+//! elements and no solver internals.
 
 pub mod density;
 pub mod fits;

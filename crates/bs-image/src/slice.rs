@@ -1,4 +1,4 @@
-//! A plane cut from images on a grid: what a preview picture shows (bs-scene cuts it,
+//! A plane cut from images on a grid: what a preview picture shows (bs-register cuts it,
 //! bs-preview draws it).
 
 /// One plane: the pre-operative and warped values, the displacement magnitude and where the

@@ -40,11 +40,20 @@
 //! assert!(Material::neo_hookean(3000.0, 0.5).is_err()); // ν must stay below 0.5
 //! ```
 //!
-//! One file per concern: [`Hyperelastic`] (the trait), the tensor helpers, [`Elastic`] and
-//! [`Lame`] (the parameter currency and its conversions), one file per law, [`Material`].
+//! Files:
+//! * `law.rs`: the `Hyperelastic` trait (unchecked `*_cj` kernels, checked methods on top);
+//! * `tensor.rs`: the Voigt convention, `C` and `J`, `inv_cbrt`, the symmetric products;
+//! * `elastic.rs`: `Elastic` (μ, κ) and `Lame` (λ, μ) with their conversions, written once;
+//! * `error.rs`: `MaterialError`, `Parameter` and the parameter checks, written once;
+//! * `neo_hookean.rs`, `st_venant_kirchhoff.rs`, `ogden.rs`: one file per law;
+//! * `material.rs`: `Material`, the run-time choice of a law and its parameters;
+//! * `closed_form.rs`: homogeneous states written out from the energies, the independent
+//!   expectations of the patch tests;
+//! * `tests.rs`: property tests shared by every law (test builds only).
 //!
 //! Architecture invariant: this crate knows nothing about meshes, elements, solvers or
-//! contact. It depends on nalgebra alone (for 3×3 algebra).
+//! contact. It depends on no brainshift crate, only on nalgebra (for 3×3 algebra) and
+//! thiserror.
 
 mod elastic;
 mod error;

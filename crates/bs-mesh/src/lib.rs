@@ -41,7 +41,33 @@
 //! assert_eq!(tets.elements.len(), 6 * 27);
 //! ```
 //!
-//! Architecture invariant: this crate knows nothing about materials, solvers or contact.
+//! Files:
+//! * `mesh.rs`: `Mesh`, `Element`, `ElementKind`, node and element ids and sets;
+//! * `validate.rs`: `Mesh::validate`, `MeshError` and `ValidationReport`;
+//! * `boundary.rs`: `BoundarySurface`, the outward boundary with its map to volume nodes;
+//! * `surface.rs`: `TriSurface` and `SurfaceTopology` (node→faces, edges, normals);
+//! * `surface_check.rs`: `SurfaceCheck`, the checks a skull must pass, and
+//!   `require_closed_outward`;
+//! * `self_intersection.rs` (tests in `self_intersection/tests.rs`): crossing triangle pairs;
+//! * `closest.rs`: the one point–triangle closest-point query with its Voronoi region;
+//! * `locate.rs`: `TetLocator`, `Location` and `transfer` (a nodal field onto other points);
+//! * `lattice.rs`: `LatticeLocation`, every lattice point located by rasterising the
+//!   tetrahedra, and `tetrahedra` (hexes split into Kuhn tetrahedra); `lattice/affine.rs`:
+//!   `TetAffine`, one affine map of the lattice indices per tetrahedron, and `map_inside`;
+//! * `lattice_inside.rs`: `inside_closed_surface`, the lattice points inside a closed surface;
+//! * `quality.rs`: radius ratio, scaled Jacobian, `summary` and `mean_edge_length`;
+//! * `tps.rs`: `ThinPlateSpline`, landmark displacements carried to other points;
+//! * `structured.rs`: `box_mesh`, `cuboid_mesh`, `jittered_box_mesh`, `box_with_ball`;
+//! * `rng.rs`: `SplitMix64`, the workspace's one seeded generator;
+//! * `io/`: `mod.rs` (`read`, `read_mesh`, `read_surface`, `write_mesh`,
+//!   `write_mesh_in_space`, `write_surface`, `Format`, `Fields`, `ParseError`,
+//!   `MeshIoError`), `inp/` (`read.rs`, `write.rs`), `msh/` (`ascii.rs`, `binary.rs`,
+//!   `state.rs`, what both share), `vtk.rs` (legacy), `vtu/` (`read.rs`, `write.rs`,
+//!   `cells.rs`, the cell model shared with `vtk.rs`), `stl.rs`, `obj.rs`, `off.rs`, `ply.rs`
+//!   (PLY vertices) and `points.rs` (`read_points`: point clouds by extension).
+//!
+//! Architecture invariant: this crate knows nothing about materials, solvers or contact. It
+//! depends on no brainshift crate but bs-atomic (every file it writes is written atomically).
 
 mod boundary;
 pub mod closest;

@@ -13,13 +13,18 @@
 //! * [`hex`]: voxel-like hexahedra on a grid;
 //! * [`cavity`] (with [`edt`]): the skull cavity by offset-and-closing of the brain mask, or
 //!   the inside of a skull label;
-//! * [`quality`], [`report`]: dihedral angles and the [`MeshReport`].
+//! * [`quality`], [`report`]: dihedral angles and the [`MeshReport`];
+//! * `pipeline.rs`: `mesh_labelmap` as named phases (labels checked and counted, fields,
+//!   the lattice's box and size bound, the volume mesh, sets and quality, the cavity and its
+//!   checks, volumes);
+//! * `error.rs`: `MeshgenError`, each naming what is wrong and the fix;
+//! * `lib.rs` itself: `ElementType`, `RegionSpec`, `MeshParams` and the result `Meshed`.
 //!
 //! Coordinates are the image's world frame in mm (RAS for NIfTI), as given by the
 //! labelmap's [`Grid`](bs_image::Grid).
 //!
-//! *Architecture invariant:* bs-meshgen knows images and meshes; it knows no materials,
-//! solvers, contact or scene files.
+//! *Architecture invariant:* bs-meshgen knows images and meshes (bs-image, bs-mesh); it
+//! knows no materials, solvers, contact or scene files.
 
 pub mod bcc;
 pub mod cavity;

@@ -9,9 +9,12 @@
 //! Text is drawn with the embedded DejaVu Sans (assets/, Bitstream Vera licence), so no
 //! system font is needed.
 //!
+//! Files: `lib.rs` only (`render`, the `viridis` colour map, `PreviewError`); the font is
+//! in `assets/`.
+//!
 //! *Architecture invariant:* bs-preview knows bs-image's [`Slice`] (plain data) and
-//! bs-atomic's writer, nothing else of brainshift; bs-scene cuts the slices, front ends
-//! call [`render`].
+//! bs-atomic's writer, nothing else of brainshift; bs-register cuts the slices
+//! (`planes.rs`), bs-cli calls [`render`].
 
 use std::path::Path;
 use std::sync::Once;

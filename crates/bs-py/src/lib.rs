@@ -5,6 +5,23 @@
 //!
 //! The GIL is released while files are read and scenes solved (`Python::detach`); a progress
 //! callback re-attaches for each call.
+//!
+//! Files (one per class or job; `lib.rs` registers them and `BrainshiftError`):
+//! * `scene.rs`: `Scene` from a file or from arrays; `check` and `run`;
+//! * `result.rs`: `Result`: displacements, report, outputs, `warp`, `field`,
+//!   `inverse_map`, `surface`;
+//! * `session.rs`: `Session` over `bs_scene::Session`: `update`, `reset`;
+//! * `image.rs`: `Image`, a pre-operative image read once and kept in memory, and the
+//!   `InverseMap` a `Result` reuses for warp and field;
+//! * `functions.rs`: `read_mesh` and `gap`;
+//! * `sweeps.rs`: the sweep functions of bs-sweep (plan, run, collect, emit Slurm);
+//! * `igtl.rs`: `crc64`, bs-igtl's checksum for Python clients;
+//! * `serve.rs`: `serve(argv)`, bs-serve's server with bs-serve's option declaration;
+//! * `convert.rs`: errors as exceptions, arrays as brainshift types, thread pools,
+//!   progress callbacks.
+//!
+//! Architecture invariant: a front end like bs-cli: it knows the scene and the session,
+//! never the solver or the composition.
 
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;

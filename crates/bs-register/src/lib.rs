@@ -6,7 +6,12 @@
 //! shows.
 //!
 //! * [`registration`]: reading a result, the inverse map, the warp and the field (files and
-//!   in memory);
+//!   in memory): `registration/result.rs` (`RunResult`: result.vtu and report.json read
+//!   back, in the image's frame and mm), `registration/inverse.rs` (`InverseMap`: the exact
+//!   inverse on an image grid, the warp, the labels, the field),
+//!   `registration/files.rs` (`warp_file`, `field_file`, `warp_volume`, `field_volume`:
+//!   the entry points on files and volumes), `registration/nodal.rs` (`NodalImage`: a nodal
+//!   quantity such as σ on an image grid);
 //! * [`outside`]: the map between the deformed brain and the skull (harmonic extension,
 //!   the pre-operative gap a voxel may sample, the cavity of a resection);
 //! * [`planes`]: the three planes through the largest displacement a preview draws.

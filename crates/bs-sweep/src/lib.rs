@@ -20,6 +20,19 @@
 //! A sweep folder holds `manifest.csv`, `manifest.json`, `scenes/I.toml` (paths made
 //! absolute), and after runs `runs/I/` (the files `brainshift run` writes, or `error.json`)
 //! and `summary.csv`.
+//!
+//! Files:
+//! * `plan.rs`: `plan`, `plan_text`: a sweep file expanded (grid or seeded Latin hypercube)
+//!   into the rows' scene files and the manifest;
+//! * `run.rs`: `run_row`, `row_dir`, `RowOutcome`: one row run into a temporary folder
+//!   renamed into place;
+//! * `collect.rs`: `collect`, `Summary`, `read_points`: every row's report.json into
+//!   `summary.csv`, with the displacement at named points;
+//! * `slurm.rs`: `emit_slurm`, `SlurmOptions`: an array job sized by bs-scene's memory
+//!   estimate.
+//!
+//! Architecture invariant: bs-sweep knows scenes only as TOML tables to vary and as runs to
+//! start through bs-scene; it composes nothing and solves nothing itself.
 
 mod collect;
 mod plan;
