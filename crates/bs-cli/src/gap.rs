@@ -61,12 +61,8 @@ pub fn run(
     let skull = bs_mesh::io::read_surface(skull_path)?;
     let sk = skull_path.display();
     let master = std::sync::Arc::new(MasterSurface::new(&skull).map_err(|e| format!("{sk}: {e}"))?);
-    let mut handler = Handler::from_master(
-        bs_scene::compose::algorithm(algorithm),
-        master.clone(),
-        PaperParams::default(),
-    )
-    .map_err(|e| format!("{sk}: {e}"))?;
+    let mut handler = Handler::from_master(algorithm, master.clone(), PaperParams::default())
+        .map_err(|e| format!("{sk}: {e}"))?;
     let (ids, points): (Vec<u64>, Vec<Point3<f64>>) = match query {
         Query::Mesh(path) => {
             let mesh = bs_mesh::io::read_mesh(path)?;

@@ -39,7 +39,7 @@ pub fn run(
             crate::emit(&format!(
                 "row {index}: converged, max displacement {} {}, {:.3} s solve; wrote {}\n",
                 report.max_displacement,
-                report.units,
+                report.units.map_or("", |u| u.symbol()),
                 report.solve_seconds,
                 out.display()
             ));

@@ -34,7 +34,7 @@ pub fn sample(
         out,
         p.mesh.clone(),
         solved.solution.displacements.clone(),
-        p.scene.space.space(),
+        p.scene.space,
         p.scene.units,
     )?;
     let image = NodalImage::new(&result, &totals, grid)?;

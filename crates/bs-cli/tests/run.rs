@@ -107,7 +107,7 @@ fn report_json_reads_back_typed_with_every_key() {
         for (key, value) in written.as_object().unwrap() {
             assert_eq!(&back[key], value, "{}: key {key}", scene.display());
         }
-        assert!(typed.converged && typed.units == "mm", "{typed:?}");
+        assert!(typed.converged && typed.units == Some(bs_scene::scene::Units::Mm), "{typed:?}");
     }
 }
 

@@ -13,8 +13,9 @@ use crate::{
 };
 
 /// The contact algorithms selectable by name (`paper`, `coherent`, `parry`, `brute-force`,
-/// `none`), e.g. from a CLI flag or a scene file.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// `none`), e.g. from a CLI flag, a scene file or a report (serde spells them so too).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum Algorithm {
     /// [`PaperContact`].
     Paper,
@@ -32,6 +33,17 @@ pub enum Algorithm {
 impl Algorithm {
     /// All names accepted by [`FromStr`](std::str::FromStr).
     pub const NAMES: [&'static str; 5] = ["paper", "coherent", "parry", "brute-force", "none"];
+
+    /// The name, as [`FromStr`](std::str::FromStr) reads it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Algorithm::Paper => "paper",
+            Algorithm::Coherent => "coherent",
+            Algorithm::Parry => "parry",
+            Algorithm::BruteForce => "brute-force",
+            Algorithm::None => "none",
+        }
+    }
 }
 
 impl std::str::FromStr for Algorithm {
@@ -51,6 +63,12 @@ impl std::str::FromStr for Algorithm {
                 )));
             }
         })
+    }
+}
+
+impl std::fmt::Display for Algorithm {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
     }
 }
 

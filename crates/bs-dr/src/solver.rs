@@ -52,7 +52,7 @@ pub struct Breakdown {
 /// says more: DR's convergence rate, Newton's load steps).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Report {
-    /// Solver name (`"newton-krylov"`, `"dynamic-relaxation"`, `"newton"`).
+    /// Solver name, as scene files and reports spell it (`"newton-krylov"`, `"dr"`, `"newton"`).
     pub solver: &'static str,
     /// DR steps, or total Newton iterations.
     pub steps: usize,

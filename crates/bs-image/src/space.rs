@@ -3,12 +3,19 @@
 use nalgebra::{Point3, Vector3};
 
 /// The anatomical frame world coordinates (mm) are given in.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+///
+/// The one frame type of the workspace: scene files (`space = "RAS"`), reports and VTU
+/// `SPACE` field data spell it `"RAS"` / `"LPS"` (serde and [`Space::name`]), and every
+/// RAS ↔ LPS conversion is [`Space::convert_point`] / [`Space::convert_vector`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum Space {
-    /// The NIfTI world frame and 3D Slicer's: +x = Right, +y = Anterior, +z = Superior.
+    /// The NIfTI world frame and 3D Slicer's: +x = Right, +y = Anterior, +z = Superior (the
+    /// default).
     #[default]
+    #[serde(rename = "RAS")]
     Ras,
     /// DICOM / ITK frame: +x = Left, +y = Posterior, +z = Superior.
+    #[serde(rename = "LPS")]
     Lps,
 }
 

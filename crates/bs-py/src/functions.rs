@@ -82,12 +82,9 @@ pub(crate) fn gap<'py>(
             let master = std::sync::Arc::new(
                 MasterSurface::new(&surface).map_err(|e| format!("{sk}: {e}"))?,
             );
-            let mut handler = Handler::from_master(
-                bs_scene::compose::algorithm(algorithm),
-                master.clone(),
-                PaperParams::default(),
-            )
-            .map_err(|e| format!("{sk}: {e}"))?;
+            let mut handler =
+                Handler::from_master(algorithm, master.clone(), PaperParams::default())
+                    .map_err(|e| format!("{sk}: {e}"))?;
             Ok(bs_contact::gap(&mut handler, &master, &pts))
         })
         .map_err(|m| raise(py, "Skull", m, false))?;

@@ -56,7 +56,7 @@ impl RunResult {
             &p.path,
             p.mesh.clone(),
             solved.solution.displacements.clone(),
-            p.scene.space.space(),
+            p.scene.space,
             p.scene.units,
         )
         .map(|r| {

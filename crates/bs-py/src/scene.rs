@@ -122,7 +122,7 @@ impl Scene {
     /// The frame of the scene's mesh: "RAS" or "LPS".
     #[getter]
     fn space(&self) -> &'static str {
-        self.prepared.scene.space.space().name()
+        self.prepared.scene.space.name()
     }
 
     /// The length unit of the scene's mesh ("mm", "m", ...).

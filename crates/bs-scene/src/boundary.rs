@@ -185,7 +185,7 @@ pub(crate) fn select_nodes(
             message: format!("{e}; the mask must be a NIfTI labelmap (non-zero = selected)"),
         })?;
     // Mesh frame and units → the image's world frame (NIfTI: RAS) in mm.
-    let space = scene.space.space();
+    let space = scene.space;
     let scale = scene.units.metres() / 1e-3;
     let nodes = surface_nodes
         .into_iter()

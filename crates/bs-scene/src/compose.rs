@@ -11,7 +11,7 @@ use bs_material::{Elastic, Material, OgdenParams};
 use crate::SceneError;
 use crate::boundary::Prescribed;
 use crate::prepare::Prepared;
-use crate::scene::{Algorithm, MaterialModel};
+use crate::scene::MaterialModel;
 use crate::skull_contact::SkullContact;
 
 /// Everything a solver run needs.
@@ -129,9 +129,8 @@ pub fn compose_with(p: &Prepared, opts: &ComposeOptions) -> Result<Composed, Sce
             // One validated master surface per run, shared by the handler and the exact
             // projection.
             let master = Arc::new(MasterSurface::new(skull).map_err(|e| skull_error(&e))?);
-            let handler =
-                Handler::from_master(algorithm(c.algorithm), master.clone(), opts.contact)
-                    .map_err(|e| skull_error(&e))?;
+            let handler = Handler::from_master(c.algorithm, master.clone(), opts.contact)
+                .map_err(|e| skull_error(&e))?;
             let enforcer = Enforcer::new(handler, slaves.clone(), model.node_count())
                 .map_err(|e| skull_error(&e))?;
             let exact =
@@ -217,14 +216,4 @@ pub fn loads_of(
         }
     }
     Ok(loads)
-}
-
-/// The bs-contact algorithm named by a scene.
-pub fn algorithm(a: Algorithm) -> bs_contact::Algorithm {
-    match a {
-        Algorithm::Paper => bs_contact::Algorithm::Paper,
-        Algorithm::Coherent => bs_contact::Algorithm::Coherent,
-        Algorithm::Parry => bs_contact::Algorithm::Parry,
-        Algorithm::BruteForce => bs_contact::Algorithm::BruteForce,
-    }
 }

@@ -14,9 +14,12 @@ use bs_mesh::io::{Field, Fields, write_atomic};
 use bs_mesh::{BoundarySurface, Mesh, TriSurface, Vector3};
 use serde::Serialize;
 
+use bs_image::Space;
+
 use crate::SceneError;
 use crate::prepare::Prepared;
 use crate::run::{Run, Solved};
+use crate::scene::{Algorithm, ElementChoice, SolverKind, Units};
 use crate::uncertainty::UncertaintyReport;
 
 /// The machine-readable summary written to report.json, and read back typed
@@ -90,12 +93,13 @@ pub struct RunReport {
     pub equilibrium_bound: f64,
     /// Largest nodal displacement magnitude.
     pub max_displacement: f64,
-    /// `"newton-krylov"`, `"dr"` or `"newton"`.
-    pub solver: String,
-    /// `"t4"`, `"t4anp"` or `"h8"`.
-    pub element: String,
-    /// Contact handler, or `"none"`.
-    pub algorithm: String,
+    /// The solver, by its scene name (`"newton-krylov"`, `"dr"` or `"newton"`).
+    pub solver: SolverKind,
+    /// The element, by its scene name (`"t4"`, `"t4anp"` or `"h8"`).
+    pub element: ElementChoice,
+    /// The contact handler, by its scene name, or `"none"`.
+    #[serde(default = "no_contact")]
+    pub algorithm: Algorithm,
     /// Counts.
     pub nodes: usize,
     /// Counts.
@@ -104,10 +108,12 @@ pub struct RunReport {
     pub slave_nodes: usize,
     /// Threads used.
     pub threads: usize,
-    /// Length unit of all lengths in this report.
-    pub units: String,
-    /// Anatomical frame of the mesh, the displacements and every output (`"RAS"`/`"LPS"`).
-    pub space: String,
+    /// Length unit of all lengths in this report (`"mm"` or `"m"`; `None` only when read
+    /// from a report that lacks the key).
+    pub units: Option<Units>,
+    /// Anatomical frame of the mesh, the displacements and every output (`"RAS"`/`"LPS"`;
+    /// `None` only when read from a report that lacks the key).
+    pub space: Option<Space>,
     /// Per `[[measurement]]`: what the fit did (points, inliers, residuals after the fit,
     /// the rigid correction, how far the data moved the model). Empty without measurements.
     pub measurements: Vec<crate::measure::MeasurementReport>,
@@ -122,6 +128,10 @@ pub struct RunReport {
     /// σ of the fitted displacement (`run --uncertainty N`; absent without).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub uncertainty: Option<crate::uncertainty::UncertaintyReport>,
+}
+
+fn no_contact() -> Algorithm {
+    Algorithm::None
 }
 
 impl RunReport {
@@ -212,15 +222,15 @@ pub fn report(run: &Run, s: &Solved, ctx: RunContext) -> RunReport {
         equilibrium_residual: v.equilibrium_residual,
         equilibrium_bound: v.equilibrium_bound,
         max_displacement: u.iter().map(|d| d.norm()).fold(0.0, f64::max),
-        solver: p.scene.solver.kind.name().to_string(),
-        element: p.element.name().to_string(),
-        algorithm: p.scene.contact.as_ref().map_or("none", |c| c.algorithm.name()).to_string(),
+        solver: p.scene.solver.kind,
+        element: p.element,
+        algorithm: p.scene.contact.as_ref().map_or(Algorithm::None, |c| c.algorithm),
         nodes: p.mesh.nodes.len(),
         elements: p.mesh.elements.len(),
         slave_nodes: c.slaves.len(),
         threads: ctx.threads,
-        units: p.scene.units.symbol().to_string(),
-        space: p.scene.space.space().name().to_string(),
+        units: Some(p.scene.units),
+        space: Some(p.scene.space),
         measurements: s.measurements.clone(),
         gravity: s.gravity.clone(),
         resected: p.resection.as_ref().map(|r| ResectedReport {
@@ -260,7 +270,7 @@ pub fn write_outputs(
             Field::new("J", 1, s.verification.measures.volume_ratio.clone()),
         ],
         // The frame of the coordinates and displacements (read back by `warp` and `field`).
-        field_data: vec![("SPACE".into(), p.scene.space.space().name().into())],
+        field_data: vec![("SPACE".into(), p.scene.space.name().into())],
     };
     let mut written = Written {
         vtu: out.join("result.vtu"),
@@ -283,7 +293,7 @@ pub fn write_outputs(
         let title = format!(
             "brainshift deformed surface of element set {name}, units {}. SPACE={}",
             p.scene.units.symbol(),
-            p.scene.space.space().name()
+            p.scene.space.name()
         );
         write_atomic(&vtk, |w| write_surface_vtk(w, &title, &b, &p.mesh, u))
             .map_err(|e| io(&vtk)(&e))?;

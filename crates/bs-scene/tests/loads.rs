@@ -248,5 +248,5 @@ fn load_keys_are_checked_at_parse_time() {
         assert!(e.contains(expect), "{extra}: {e}");
     }
     let s = bs_scene::Scene::parse(&format!("space = \"LPS\"\n{base}")).unwrap();
-    assert_eq!(s.space.space(), bs_image::Space::Lps);
+    assert_eq!(s.space, bs_image::Space::Lps);
 }

@@ -106,7 +106,7 @@ fn one(shared: &Shared, stream: &mut TcpStream, c: &mut Client, m: &Message) -> 
                 r.steps,
                 r.linear_iterations,
                 r.max_displacement,
-                r.units,
+                r.units.map_or("", |u| u.symbol()),
                 t.image,
                 t.send_warped,
                 t.extension_iterations

@@ -3,41 +3,37 @@
 //! both ways; displacement CSV rows are in the scene's frame and unit already, as a
 //! `displacement_file` is.
 
+use bs_image::Space;
 use bs_mesh::{Point3, Vector3};
-use bs_scene::scene::{SpaceName, Units};
+use bs_scene::scene::Units;
 
 /// The scene's frame and unit against RAS mm.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Frame {
-    /// +1 or −1 per axis: LPS flips x and y.
-    flip: [f64; 3],
+    space: Space,
     /// Millimetres per scene unit.
     mm: f64,
 }
 
 impl Frame {
     /// The frame of a scene with `space` and `units`.
-    pub fn new(space: SpaceName, units: Units) -> Frame {
-        let flip = match space.space() {
-            bs_image::Space::Lps => [-1.0, -1.0, 1.0],
-            bs_image::Space::Ras => [1.0; 3],
-        };
-        Frame { flip, mm: units.metres() / 1e-3 }
+    pub fn new(space: Space, units: Units) -> Frame {
+        Frame { space, mm: units.metres() / 1e-3 }
     }
 
     /// A RAS mm point in the scene's frame and unit.
     pub fn to_scene(&self, ras_mm: [f64; 3]) -> Point3<f64> {
-        Point3::from(std::array::from_fn(|k| ras_mm[k] * self.flip[k] / self.mm))
+        Space::Ras.convert_point(self.space, Point3::from(ras_mm)) / self.mm
     }
 
     /// A scene point in RAS mm.
     pub fn to_ras(&self, p: &Point3<f64>) -> [f64; 3] {
-        std::array::from_fn(|k| p[k] * self.mm * self.flip[k])
+        (self.space.convert_point(Space::Ras, *p) * self.mm).coords.into()
     }
 
     /// A RAS direction in the scene's frame (no unit: directions keep their length).
     pub fn direction_to_scene(&self, d: Vector3<f64>) -> [f64; 3] {
-        std::array::from_fn(|k| d[k] * self.flip[k])
+        Space::Ras.convert_vector(self.space, d).into()
     }
 }
 
@@ -47,10 +43,10 @@ mod tests {
 
     #[test]
     fn lps_metres_and_back() {
-        let f = Frame::new(SpaceName::Lps, Units::M);
+        let f = Frame::new(Space::Lps, Units::M);
         assert_eq!(f.to_scene([1000.0, -2000.0, 3000.0]), Point3::new(-1.0, 2.0, 3.0));
         assert_eq!(f.to_ras(&f.to_scene([1.5, 2.5, -3.5])), [1.5, 2.5, -3.5]);
-        let ras = Frame::new(SpaceName::Ras, Units::Mm);
+        let ras = Frame::new(Space::Ras, Units::Mm);
         assert_eq!(ras.to_scene([1.0, 2.0, 3.0]), Point3::new(1.0, 2.0, 3.0));
         assert_eq!(f.direction_to_scene(Vector3::new(0.0, -1.0, 0.0)), [0.0, 1.0, 0.0]);
     }

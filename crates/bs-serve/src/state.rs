@@ -152,9 +152,8 @@ impl Brainshift {
             let p = &s.run().prepared;
             let u = solved.solution.displacements;
             let surface = bs_scene::output::deformed_boundary(&p.mesh, &u);
-            let result =
-                RunResult::new(&p.path, p.mesh.clone(), u, p.scene.space.space(), p.scene.units)
-                    .map_err(|e| e.to_string())?;
+            let result = RunResult::new(&p.path, p.mesh.clone(), u, p.scene.space, p.scene.units)
+                .map_err(|e| e.to_string())?;
             let mut result = result.with_skull(p.skull.clone());
             result.resected = p.resection.is_some();
             let solve_seconds = started.elapsed().as_secs_f64();

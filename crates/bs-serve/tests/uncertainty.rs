@@ -142,7 +142,7 @@ fn a_fitted_scan_is_answered_with_its_uncertainty_after_the_warped_image() {
         &p.path,
         p.mesh.clone(),
         solved.solution.displacements.clone(),
-        p.scene.space.space(),
+        p.scene.space,
         p.scene.units,
     )
     .unwrap();

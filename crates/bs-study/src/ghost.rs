@@ -31,7 +31,7 @@ pub fn main() -> Result<(), String> {
     let fx = root.join("fixtures/mni152");
     let prepared = Prepared::load(&fx.join("scene.toml")).map_err(|e| e.to_string())?;
     let (mesh, skull) = (prepared.mesh.clone(), prepared.skull.clone());
-    let (space, units) = (prepared.scene.space.space(), prepared.scene.units);
+    let (space, units) = (prepared.scene.space, prepared.scene.units);
     let mut run = Run::prepare(prepared).map_err(|e| e.to_string())?;
     let solved = run.solve(&mut |_| {}).map_err(|e| e.to_string())?;
     let u = solved.solution.displacements.clone();

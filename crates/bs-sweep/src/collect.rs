@@ -172,7 +172,7 @@ pub fn collect(dir: &Path, points: &[NamedPoint]) -> Result<Summary, SweepError>
                 r.max_displacement = Some(report.max_displacement);
                 r.nodes_in_contact = Some(report.nodes_in_contact as u64);
                 r.solve_seconds = Some(report.solve_seconds);
-                r.units = Some(report.units);
+                r.units = report.units.map(|u| u.symbol().to_string());
             }
             if !points.is_empty() {
                 match at_points(dir, &row.scene, &out, points, &mut located) {

@@ -407,7 +407,7 @@ impl DynamicRelaxation {
 
 impl Solver for DynamicRelaxation {
     fn name(&self) -> &'static str {
-        "dynamic-relaxation"
+        "dr"
     }
 
     fn solve(

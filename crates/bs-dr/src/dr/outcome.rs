@@ -30,7 +30,7 @@ pub struct DrInfo {
 impl From<DrInfo> for Report {
     fn from(i: DrInfo) -> Report {
         Report {
-            solver: "dynamic-relaxation",
+            solver: "dr",
             steps: i.steps,
             err: i.err,
             tolerance: i.tolerance,
@@ -189,7 +189,7 @@ mod tests {
         let r = Report::from(info);
         assert_eq!(
             (r.solver, r.steps, r.force_evaluations, r.linear_iterations),
-            ("dynamic-relaxation", 12, 12, 0)
+            ("dr", 12, 12, 0)
         );
         assert_eq!((r.err, r.tolerance), (1e-7, 1e-6));
     }

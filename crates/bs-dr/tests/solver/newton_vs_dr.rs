@@ -74,9 +74,7 @@ fn solvers_are_swappable_behind_the_trait() {
     for s in solvers {
         let common = s.solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
         let (u, steps, evaluations) = match s.name() {
-            "dynamic-relaxation" => {
-                (&own_dr.displacements, own_dr.report.steps, own_dr.report.steps)
-            }
+            "dr" => (&own_dr.displacements, own_dr.report.steps, own_dr.report.steps),
             _ => (
                 &own_newton.displacements,
                 own_newton.report.iterations,

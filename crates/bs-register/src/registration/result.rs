@@ -52,8 +52,8 @@ impl RunResult {
         }
         let read = bs_scene::output::RunReport::read(&report).map_err(err)?;
         let mut notes = Vec::new();
-        let space = match read.space.as_str() {
-            "" => {
+        let space = match read.space {
+            None => {
                 notes.push(format!(
                     "{} names no \"space\" (written before frames were recorded): the mesh is \
                      taken as RAS; re-run the scene to record it",
@@ -61,23 +61,11 @@ impl RunResult {
                 ));
                 Space::Ras
             }
-            s => Space::from_name(s).ok_or_else(|| {
-                err(format!(
-                    "{}: \"space\" is \"{s}\"; expected \"RAS\" or \"LPS\"",
-                    report.display()
-                ))
-            })?,
+            Some(s) => s,
         };
-        let units = match read.units.as_str() {
-            "mm" => Units::Mm,
-            "m" => Units::M,
-            other => {
-                return Err(err(format!(
-                    "{}: \"units\" is {other:?}; expected \"mm\" or \"m\"",
-                    report.display()
-                )));
-            }
-        };
+        let units = read.units.ok_or_else(|| {
+            err(format!("{}: names no \"units\"; expected \"mm\" or \"m\"", report.display()))
+        })?;
         let (mesh, fields) = match bs_mesh::io::read(&vtu).map_err(|e| err(e.to_string()))? {
             bs_mesh::io::MeshFile::Volume(m, f) => (m, f),
             bs_mesh::io::MeshFile::Surface(_) => {
@@ -130,7 +118,7 @@ impl RunResult {
         let skull = if skull_file.is_file() {
             Some(bs_mesh::io::read_surface(&skull_file).map_err(|e| err(e.to_string()))?)
         } else {
-            if !read.algorithm.is_empty() && read.algorithm != "none" {
+            if read.algorithm != bs_scene::scene::Algorithm::None {
                 notes.push(format!(
                     "{} names a contact algorithm but {} is missing (a result written before \
                      the skull was kept with it): the map outside the brain decays over a band \

@@ -11,7 +11,9 @@ use std::path::Path;
 
 use bs_mesh::Point3;
 
-use crate::scene::{LandmarkFiles, SpaceName};
+use bs_image::Space;
+
+use crate::scene::LandmarkFiles;
 
 /// Landmark pairs in the scene's frame, with where each was read.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -25,12 +27,12 @@ pub struct Pairs {
 /// Points of one markup or tag file, with a label or line each, and their frame.
 struct Labelled {
     points: Vec<(String, Point3<f64>)>,
-    frame: SpaceName,
+    frame: Space,
 }
 
 /// Reads the landmark files into `space` (the scene's frame). Errors are messages that
 /// name the file and line or label.
-pub fn read_pairs(files: &LandmarkFiles, space: SpaceName) -> Result<Pairs, String> {
+pub fn read_pairs(files: &LandmarkFiles, space: Space) -> Result<Pairs, String> {
     let pairs = match files {
         LandmarkFiles::Pairs(f) => match extension(f).as_str() {
             "csv" => read_csv(f, space)?,
@@ -56,18 +58,14 @@ pub fn read_pairs(files: &LandmarkFiles, space: SpaceName) -> Result<Pairs, Stri
 
 impl Pairs {
     /// The pairs read in RAS, in `space`.
-    fn into_frame(mut self, space: SpaceName) -> Pairs {
-        if space == SpaceName::Lps {
+    fn into_frame(mut self, space: Space) -> Pairs {
+        if space == Space::Lps {
             for p in self.pre.iter_mut().chain(self.intra.iter_mut()) {
-                *p = flip(p);
+                *p = Space::Ras.convert_point(space, *p);
             }
         }
         self
     }
-}
-
-fn flip(p: &Point3<f64>) -> Point3<f64> {
-    Point3::new(-p.x, -p.y, p.z)
 }
 
 fn extension(f: &Path) -> String {
@@ -96,7 +94,7 @@ fn numbers(f: &Path, line: usize, fields: &[&str]) -> Result<Vec<f64>, String> {
 }
 
 /// `.csv` pairs with header `x,y,z,x2,y2,z2` (the scene's frame).
-fn read_csv(f: &Path, _space: SpaceName) -> Result<Pairs, String> {
+fn read_csv(f: &Path, _space: Space) -> Result<Pairs, String> {
     let text = read_text(f)?;
     let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
     let header: Vec<String> = lines
@@ -132,7 +130,7 @@ fn read_csv(f: &Path, _space: SpaceName) -> Result<Pairs, String> {
 /// An MNI `.tag` file with two volumes: after `Points =`, one tag per line (six
 /// coordinates, then optional weight, structure, patient ids and a quoted label), the last
 /// ending with `;`. RAS (world coordinates of MINC volumes).
-fn read_tag(f: &Path, space: SpaceName) -> Result<Pairs, String> {
+fn read_tag(f: &Path, space: Space) -> Result<Pairs, String> {
     let text = read_text(f)?;
     if !text.trim_start().starts_with("MNI Tag Point File") {
         return Err(format!(
@@ -209,17 +207,21 @@ fn read_markups(f: &Path) -> Result<Labelled, String> {
         }
     };
     let points = match l.frame {
-        SpaceName::Ras => l.points,
-        SpaceName::Lps => l.points.into_iter().map(|(s, p)| (s, flip(&p))).collect(),
+        Space::Ras => l.points,
+        Space::Lps => l
+            .points
+            .into_iter()
+            .map(|(s, p)| (s, Space::Lps.convert_point(Space::Ras, p)))
+            .collect(),
     };
-    Ok(Labelled { points, frame: SpaceName::Ras })
+    Ok(Labelled { points, frame: Space::Ras })
 }
 
 /// `.fcsv`: `#` comment lines (one of them `# CoordinateSystem = RAS|LPS|0|1`), then
 /// `id,x,y,z,ow,ox,oy,oz,vis,sel,lock,label,…`.
 fn read_fcsv(f: &Path) -> Result<Labelled, String> {
     let text = read_text(f)?;
-    let mut frame = SpaceName::Ras;
+    let mut frame = Space::Ras;
     let mut points = Vec::new();
     for (l, raw) in text.lines().enumerate() {
         let line = raw.trim();
@@ -228,8 +230,8 @@ fn read_fcsv(f: &Path) -> Result<Labelled, String> {
                 && key.trim().eq_ignore_ascii_case("CoordinateSystem")
             {
                 frame = match value.trim() {
-                    "RAS" | "0" => SpaceName::Ras,
-                    "LPS" | "1" => SpaceName::Lps,
+                    "RAS" | "0" => Space::Ras,
+                    "LPS" | "1" => Space::Lps,
                     v => {
                         return Err(format!(
                             "{}: line {}: unknown coordinate system '{v}' (RAS or LPS)",
@@ -270,8 +272,8 @@ fn read_mrk_json(f: &Path) -> Result<Labelled, String> {
         format!("{}: no \"markups\" list: not a 3D Slicer markups file", f.display())
     })?;
     let frame = match markup.get("coordinateSystem").and_then(|c| c.as_str()).unwrap_or("LPS") {
-        "RAS" => SpaceName::Ras,
-        "LPS" => SpaceName::Lps,
+        "RAS" => Space::Ras,
+        "LPS" => Space::Lps,
         v => return Err(format!("{}: unknown coordinateSystem '{v}' (RAS or LPS)", f.display())),
     };
     let list = markup
@@ -364,22 +366,22 @@ mod tests {
             LandmarkFiles::Pairs(tag),
             LandmarkFiles::Split([pre, intra]),
         ] {
-            let p = read_pairs(&files, SpaceName::Ras).unwrap();
+            let p = read_pairs(&files, Space::Ras).unwrap();
             assert_eq!(p.pre, expect_pre, "{files:?}");
             assert_eq!(p.intra, expect_intra, "{files:?}");
         }
         // CSV is in the scene's frame already; RAS files are flipped into an LPS scene.
-        let lps = read_pairs(&LandmarkFiles::Pairs(csv), SpaceName::Lps).unwrap();
+        let lps = read_pairs(&LandmarkFiles::Pairs(csv), Space::Lps).unwrap();
         assert_eq!(lps.pre, expect_pre);
     }
 
     #[test]
     fn errors_name_the_file_and_line_or_label() {
         let bad = write("bad.csv", "x,y,z,x2,y2,z2\n1,2,3,4,5,6\n1,2,nan,4,5,6\n");
-        let e = read_pairs(&LandmarkFiles::Pairs(bad), SpaceName::Ras).unwrap_err();
+        let e = read_pairs(&LandmarkFiles::Pairs(bad), Space::Ras).unwrap_err();
         assert!(e.contains("bad.csv: line 3") && e.contains("nan"), "{e}");
         let one = write("one.tag", "MNI Tag Point File\nVolumes = 1;\nPoints =\n 1 2 3;\n");
-        let e = read_pairs(&LandmarkFiles::Pairs(one), SpaceName::Ras).unwrap_err();
+        let e = read_pairs(&LandmarkFiles::Pairs(one), Space::Ras).unwrap_err();
         assert!(e.contains("line 4") && e.contains("Volumes = 2"), "{e}");
         let a = write(
             "a.mrk.json",
@@ -389,10 +391,10 @@ mod tests {
             "b.mrk.json",
             r#"{"markups":[{"controlPoints":[{"label":"Y","position":[0,0,0]}]}]}"#,
         );
-        let e = read_pairs(&LandmarkFiles::Split([a, b]), SpaceName::Ras).unwrap_err();
+        let e = read_pairs(&LandmarkFiles::Split([a, b]), Space::Ras).unwrap_err();
         assert!(e.contains("label \"X\" has no point"), "{e}");
         let empty = write("empty.csv", "x,y,z,x2,y2,z2\n");
-        let e = read_pairs(&LandmarkFiles::Pairs(empty), SpaceName::Ras).unwrap_err();
+        let e = read_pairs(&LandmarkFiles::Pairs(empty), Space::Ras).unwrap_err();
         assert!(e.contains("no landmark pairs"), "{e}");
     }
 }

@@ -198,7 +198,7 @@ pub(crate) fn locate_landmarks(
                 p.y,
                 p.z,
                 at.distance,
-                scene.space.space().name()
+                scene.space.name()
             )));
         }
         let nodes = locator.element_nodes(at.element);
@@ -385,12 +385,13 @@ pub(crate) fn check_frame(
         .map(|q| q.distance)
         .fold(f64::INFINITY, f64::min);
     let mut hints = Vec::new();
-    let flipped = near(&|p| Point3::new(-p.x, -p.y, p.z));
+    let other = match scene.space {
+        bs_image::Space::Ras => bs_image::Space::Lps,
+        bs_image::Space::Lps => bs_image::Space::Ras,
+    };
+    let flipped = near(&|p| scene.space.convert_point(other, *p));
     if flipped > 0 {
-        let other = match scene.space {
-            crate::scene::SpaceName::Ras => "LPS",
-            crate::scene::SpaceName::Lps => "RAS",
-        };
+        let other = other.name();
         hints.push(format!(
             "read as {other} (x and y negated) {flipped} of them would be: convert the scan to \
              the scene's frame"
@@ -406,7 +407,7 @@ pub(crate) fn check_frame(
     }
     let hint = if hints.is_empty() {
         "check the scan's frame (the scene is ".to_string()
-            + scene.space.space().name()
+            + scene.space.name()
             + ") and units, and the node set"
     } else {
         hints.join("; ")

@@ -6,7 +6,7 @@ use serde::Deserialize;
 
 use super::{
     Boundary, Contact, ElementChoice, Gravity, MaterialModel, Measurement, Region, Solver,
-    SpaceName, UncertaintySection, Units,
+    UncertaintySection, Units,
 };
 use crate::SceneError;
 
@@ -39,7 +39,7 @@ pub struct Scene {
     pub units: Units,
     /// Anatomical frame of the mesh files: `"RAS"` (default) or `"LPS"`.
     #[serde(default)]
-    pub space: SpaceName,
+    pub space: bs_image::Space,
     /// The brain mesh.
     pub mesh: MeshSection,
     /// Material regions.

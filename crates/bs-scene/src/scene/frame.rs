@@ -1,9 +1,9 @@
-//! The mesh's length unit and anatomical frame: `units` and `space`.
+//! The mesh's length unit, `units` (its anatomical frame, `space`, is `bs_image::Space`).
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 /// Length unit of the mesh files. Stresses and moduli are always in Pa.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Units {
     /// Millimetres.
@@ -26,28 +26,6 @@ impl Units {
         match self {
             Units::Mm => "mm",
             Units::M => "m",
-        }
-    }
-}
-
-/// The anatomical frame of the mesh coordinates (and of every displacement and output).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
-pub enum SpaceName {
-    /// Right–Anterior–Superior: NIfTI's world frame and 3D Slicer's (the default).
-    #[default]
-    #[serde(rename = "RAS")]
-    Ras,
-    /// Left–Posterior–Superior: DICOM's and ITK's frame.
-    #[serde(rename = "LPS")]
-    Lps,
-}
-
-impl SpaceName {
-    /// The frame.
-    pub fn space(self) -> bs_image::Space {
-        match self {
-            SpaceName::Ras => bs_image::Space::Ras,
-            SpaceName::Lps => bs_image::Space::Lps,
         }
     }
 }

@@ -1,12 +1,13 @@
 //! `[mesh] element` and `[[region]]`: element choices, materials and their moduli.
 
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 /// Element technology.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ElementChoice {
     /// Linear tetrahedron.
+    #[default]
     T4,
     /// Linear tetrahedron with average nodal pressure (locking-free).
     T4anp,

@@ -64,6 +64,7 @@ mod tests {
 
     const GOOD: &str = r#"
 units = "mm"
+space = "RAS"
 [mesh]
 file = "brain.inp"
 element = "t4anp"
@@ -109,7 +110,7 @@ tolerance = 1e-3
         let bad = GOOD.replace("tolerance = 1e-3", "tolerence = 1e-3");
         let e = Scene::parse(&bad).unwrap_err();
         assert!(e.contains("tolerence"), "{e}");
-        assert!(e.contains("line 20"), "{e}");
+        assert!(e.contains("line 21"), "{e}");
     }
 
     #[test]
@@ -123,6 +124,9 @@ tolerance = 1e-3
             ("tolerance = 1e-3", "tolerance = 0.0", "tolerance must be positive"),
             ("z = -8.0 }", "z = -8.0 }\nfix = [\"x\"]", "exactly one of fix, displacement"),
             ("model = \"neo-hookean\"", "model = \"ogden\"", "needs alpha"),
+            ("algorithm = \"paper\"", "algorithm = \"none\"", "remove the [contact] table"),
+            ("algorithm = \"paper\"", "algorithm = \"fast\"", "unknown variant `fast`"),
+            ("space = \"RAS\"", "space = \"ras\"", "unknown variant `ras`"),
         ];
         for (from, to, expect) in cases {
             let e = Scene::parse(&GOOD.replace(from, to)).unwrap_err();

@@ -4,19 +4,9 @@ use std::path::PathBuf;
 
 use serde::Deserialize;
 
-/// Contact handler names.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Algorithm {
-    /// The paper's algorithm.
-    Paper,
-    /// The paper's algorithm with temporal coherence.
-    Coherent,
-    /// parry3d's closest-point query.
-    Parry,
-    /// Every face, every time (reference).
-    BruteForce,
-}
+/// Contact handler names: bs-contact's own (`none` is refused in a scene: a scene without
+/// contact has no `[contact]` table).
+pub use bs_contact::Algorithm;
 
 /// The rigid skull.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -25,32 +15,32 @@ pub struct Contact {
     /// Closed, outward-oriented triangle surface (.stl, .obj, .off).
     pub skull: PathBuf,
     /// Handler; default `paper`.
-    #[serde(default = "default_algorithm")]
+    #[serde(default = "default_algorithm", deserialize_with = "handler")]
     pub algorithm: Algorithm,
-}
-
-impl Algorithm {
-    /// The scene-file name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Algorithm::Paper => "paper",
-            Algorithm::Coherent => "coherent",
-            Algorithm::Parry => "parry",
-            Algorithm::BruteForce => "brute-force",
-        }
-    }
 }
 
 fn default_algorithm() -> Algorithm {
     Algorithm::Paper
 }
 
+/// A handler's name; `none` is an error naming the fix.
+fn handler<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Algorithm, D::Error> {
+    match Algorithm::deserialize(d)? {
+        Algorithm::None => Err(serde::de::Error::custom(
+            "algorithm \"none\" is not a handler: to solve without contact, remove the \
+             [contact] table; the handlers are paper, coherent, parry and brute-force",
+        )),
+        a => Ok(a),
+    }
+}
+
 /// Solver kinds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum SolverKind {
     /// Semismooth Newton–Krylov with the two-level preconditioner (the default): any
     /// element, kinematic contact linearised on its active set.
+    #[default]
     #[serde(rename = "newton-krylov")]
     NewtonKrylov,
     /// Dynamic Relaxation (the paper's solver; the baseline).
@@ -115,4 +105,4 @@ impl Default for Solver {
     }
 }
 
-display_by_name!(Algorithm, SolverKind);
+display_by_name!(SolverKind);

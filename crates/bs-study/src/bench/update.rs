@@ -145,7 +145,7 @@ pub fn run(scene: Option<&Path>) -> Result<(), String> {
     // trilinear resampling on the template's grid, the image read once before.
     let prepared = &warm.run().prepared;
     let (mesh, skull) = (prepared.mesh.clone(), prepared.skull.clone());
-    let (space, units) = (prepared.scene.space.space(), prepared.scene.units);
+    let (space, units) = (prepared.scene.space, prepared.scene.units);
     let img = bs_image::nifti::read_image(&t1).map_err(|e| e.to_string())?;
     let v = &img.volume;
     let mut warp_times = Vec::new();

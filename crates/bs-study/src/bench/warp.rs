@@ -36,7 +36,7 @@ pub fn run() -> Result<(), String> {
     let prepared = Prepared::load(&scene).map_err(|e| e.to_string())?;
     let mesh: Mesh = prepared.mesh.clone();
     let skull = prepared.skull.clone();
-    let space = prepared.scene.space.space();
+    let space = prepared.scene.space;
     let units = prepared.scene.units;
     let mut run = Run::prepare(prepared).map_err(|e| e.to_string())?;
     let solved = run.solve(&mut |_| {}).map_err(|e| e.to_string())?;
