@@ -22,6 +22,9 @@
 //!   the patch sliding along itself (`Slide`, `slide_stiffness`), `surface/tests.rs`;
 //! * [`landmarks`]: landmark pairs (tracked ultrasound, a pointer) measured point-to-point
 //!   at material points inside the brain (`LandmarkFit`, `Anchor`);
+//! * [`boundary_fit`]: landmarks fitted through a small basis of fields on the boundary the
+//!   shift comes from (`basis`, `chord_fit`: Tukey-weighted, discrepancy-regularised
+//!   Gauss–Newton on the amplitudes, the model a closure);
 //! * [`rigid`]: the scan's rigid misalignment, estimated from points on bone (`fit_rigid`),
 //!   with its posterior covariance;
 //! * [`robust`]: the scale estimate and the biweight;
@@ -35,6 +38,7 @@
 //! points, and bs-dr); it reads no files and knows no scene (bs-scene builds its terms), no
 //! elements and no solver internals.
 
+pub mod boundary_fit;
 pub mod density;
 pub mod fits;
 pub mod landmarks;

@@ -1,11 +1,11 @@
 //! "Model no more than a scene needs": what `brainshift check` advises, from the cheapest
 //! configurations that `cargo xtask chart` measured on the benchmark cases (the MNI152
 //! brain and the paper's ellipsoid; `docs/speed-accuracy.md`). The measurements are
-//! embedded at build time ([`crate::findings`]).
+//! embedded at build time ([`crate::speed_accuracy`]).
 
-use crate::findings::{Findings, Target};
 use crate::prepare::Prepared;
 use crate::scene::ElementChoice;
+use crate::speed_accuracy::{Findings, Target};
 
 fn element_rank(e: &str) -> u8 {
     // T4ANP is at least as accurate as T4 on every mesh of the chart (T4 locks).
@@ -87,7 +87,7 @@ pub fn advise(p: &Prepared, f: &Findings) -> Vec<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::findings::CaseFindings;
+    use crate::speed_accuracy::CaseFindings;
 
     fn target(target_mm: f64, element: &str, mean_edge_mm: f64, tolerance_mm: f64) -> Target {
         Target {

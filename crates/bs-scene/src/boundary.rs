@@ -15,13 +15,9 @@ use crate::scene::Scene;
 /// is held at 0, the same constraint), or free (`None`).
 pub type Prescribed = Vec<[Option<f64>; 3]>;
 
-/// Resolves every `[[boundary]]` of `scene` on `mesh`.
-pub fn resolve_boundaries(sp: &Path, scene: &Scene, mesh: &Mesh) -> Result<Prescribed, SceneError> {
-    resolve_boundaries_with_notes(sp, scene, mesh).map(|(p, _)| p)
-}
-
-/// [`resolve_boundaries`] with one line per intra-operative load or set-free selection
-/// (what `check` reports: the file or selection, how many nodes, the largest displacement).
+/// Resolves every `[[boundary]]` of `scene` on `mesh`, with one line per intra-operative
+/// load or set-free selection (what `check` reports: the file or selection, how many nodes,
+/// the largest displacement).
 pub fn resolve_boundaries_with_notes(
     sp: &Path,
     scene: &Scene,

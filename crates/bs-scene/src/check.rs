@@ -8,8 +8,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::SceneError;
 use crate::compose::{Composed, compose};
-use crate::findings::Findings;
 use crate::prepare::Prepared;
+use crate::speed_accuracy::Findings;
 
 /// A scene that can run, with what `brainshift check` reports about it.
 #[derive(Debug)]

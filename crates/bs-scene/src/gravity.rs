@@ -74,13 +74,7 @@ fn check_level(
     Ok(())
 }
 
-/// The consistent nodal loads of the scene's gravity on `model` (empty without gravity).
-pub fn nodal_loads(p: &Prepared, model: &Model) -> Result<Vec<Vector3<f64>>, SceneError> {
-    let Some(gravity) = &p.scene.gravity else { return Ok(Vec::new()) };
-    nodal_loads_with(p, model, gravity)
-}
-
-/// [`nodal_loads`] for `gravity` instead of the scene's own.
+/// The consistent nodal loads of `gravity` (the scene's, or an estimate's) on `model`.
 pub fn nodal_loads_with(
     p: &Prepared,
     model: &Model,

@@ -5,22 +5,28 @@
 //! The data flow, one module per step:
 //!
 //! * [`scene`]: the scene file (TOML) and its keys — the contract users write;
-//! * [`prepare`] (with [`boundary`] and `loads`, displacements from an intra-operative
+//! * [`prepare`] (with `boundary` and `loads`, displacements from an intra-operative
 //!   surface or landmark pairs): files read, sets resolved, everything checked that
 //!   can be checked without computing — a [`Prepared`] scene;
-//! * [`compose`] (with [`skull_contact`]): model, loads and contact handler, the only
+//! * [`compose`] (with `skull_contact`): model, loads and contact handler, the only
 //!   place that knows both bs-dr and bs-contact;
-//! * [`gap`]: exact brain–skull gaps, the initial check;
+//! * `gap`: exact brain–skull gaps, the initial check;
 //! * [`solve`]: the solver a scene asks for, prepared once and driven with an observer;
 //! * [`verify`]: the result checked independently of the solver (contact, J, equilibrium);
-//! * [`run`] and [`output`]: the verified run of a scene and its result files;
+//! * [`Run`] and [`output`]: the verified run of a scene and its result files;
+//! * [`Session`]: the live loop (boundary values, scans, landmarks, gravity, a resection,
+//!   each solved warm from the last good state);
 //! * (a run's result applied to images — the warp, the field, the preview's planes — is
 //!   bs-register's, above this crate);
 //! * [`uncertainty`]: σ of a fitted answer, sampled through the converged tangent after
 //!   its solve (`run --uncertainty`) and scaled by held-out landmarks;
-//! * [`check`]: everything `run` does before solving, with [`memory`] and [`advice`];
-//! * [`findings`]: the speed-versus-accuracy results `check` advises from, typed end to end
-//!   (the studies that measure them are bs-study's).
+//! * [`check`]: everything `run` does before solving, with [`memory`] and `advice`;
+//! * [`speed_accuracy`]: the speed-against-accuracy findings `check` advises from (the study
+//!   that measures them is bs-study's).
+//!
+//! Public modules are those another crate names; the rest (`advice`, `boundary`, `gap`,
+//! `gravity`, `imposed`, `landmark_fit`, `loads`, `resection`, `run`, `session`,
+//! `skull_contact`) are reached through the re-exports below or not at all.
 //!
 //! [`mesh_scene`] makes a scene folder from a labelmap (`brainshift mesh`, via bs-meshgen).
 //!
@@ -42,7 +48,8 @@
 //!   files in `pairs.rs`), made into bs-fit's terms at composition (`terms.rs`), reported
 //!   after the solve (`outcome.rs`), a pull that cannot be carried explained (`failure.rs`);
 //! * `imposed.rs`: an element inverted by imposed data alone, named as such;
-//! * `inverse.rs`: landmarks fitted through the boundary the shift comes from;
+//! * `landmark_fit.rs`: landmarks fitted through the boundary the shift comes from (bs-fit's
+//!   `boundary_fit` composed with the scene's model);
 //! * `estimate/`: `[gravity] estimate`'s unknowns from a scan: `mod.rs` (probes, Broyden,
 //!   line search), `params.rs` (the unknowns), `residuals.rs`, `gauss_newton.rs`;
 //! * `uncertainty/`: `mod.rs` (the sampling), `draws.rs` (one sample's change),
@@ -65,7 +72,7 @@
 //! * `check.rs`: `check`, `Checked`, `CheckReport`;
 //! * `memory.rs`: the peak estimate and its refusal; `advice.rs`: `advise`;
 //!   `region_effect.rs`: `region_effects` (`check --region-effect`);
-//! * `findings.rs`: `ChartPoint`, `Findings`, the Pareto front, `cheapest`;
+//! * `speed_accuracy.rs`: `Findings` (the embedded `data/speed-accuracy.json`);
 //! * `mesh_scene.rs`: `mesh_to_scene`, `write_scene_folder` (`brainshift mesh`);
 //! * `error.rs`: `SceneError` and `VerifyError`.
 //!
@@ -83,17 +90,16 @@
 //! # Ok::<(), bs_scene::SceneError>(())
 //! ```
 
-pub mod advice;
-pub mod boundary;
+mod advice;
+mod boundary;
 pub mod check;
 pub mod compose;
 mod error;
 pub mod estimate;
-pub mod findings;
-pub mod gap;
-pub mod gravity;
+mod gap;
+mod gravity;
 mod imposed;
-pub mod inverse;
+mod landmark_fit;
 mod loads;
 pub mod measure;
 pub mod memory;
@@ -101,12 +107,13 @@ pub mod mesh_scene;
 pub mod output;
 pub mod prepare;
 pub mod region_effect;
-pub mod resection;
-pub mod run;
+mod resection;
+mod run;
 pub mod scene;
-pub mod session;
-pub mod skull_contact;
+mod session;
+mod skull_contact;
 pub mod solve;
+pub mod speed_accuracy;
 pub mod uncertainty;
 pub mod verify;
 

@@ -100,9 +100,9 @@ impl Run {
             let (s, pen, report) = crate::estimate::solve(p, c, &self.settings, observer)?;
             estimated = Some(report);
             (s, pen)
-        } else if crate::inverse::has_landmarks(&self.prepared) {
+        } else if crate::landmark_fit::has_landmarks(&self.prepared) {
             let (p, c) = (&mut self.prepared, &mut self.composed);
-            let (s, pen, _) = crate::inverse::solve(p, c, &self.settings, None, observer)?;
+            let (s, pen, _) = crate::landmark_fit::solve(p, c, &self.settings, None, observer)?;
             (s, pen)
         } else {
             solve_composed(&mut self.composed, &self.settings, observer)

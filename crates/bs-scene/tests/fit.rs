@@ -533,7 +533,7 @@ fn landmarks_fitted_through_the_top_recover_the_push_that_moved_them() {
         assert_eq!(m.points, 12);
         assert_eq!(m.outliers, usize::from(outlier.is_some()), "{name}: {m:?}");
         assert!(m.rms_residual < 0.03, "{name}: {m:?}");
-        assert!(m.solves > bs_scene::inverse::BUMPS + 3, "{name}: {m:?}");
+        assert!(m.solves > bs_fit::boundary_fit::BUMPS + 3, "{name}: {m:?}");
     }
 }
 

@@ -13,10 +13,12 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::speed_accuracy::{
+    ChartPoint, TARGETS, findings_of, from_csv, markdown, pareto_front, to_csv,
+};
 use crate::study::{ContactChoice, Variant, difference};
 use bs_mesh::quality::mean_edge_length;
 use bs_mesh::{TetLocator, Vector3, transfer};
-use bs_scene::findings::{ChartPoint, Findings, TARGETS, from_csv, markdown, pareto_front, to_csv};
 use bs_scene::prepare::Prepared;
 use bs_scene::scene::{Algorithm, ElementChoice, SolverKind};
 use plotters::coord::Shift;
@@ -461,7 +463,7 @@ fn charts_dir() -> PathBuf {
     root().join("docs/charts")
 }
 
-/// Reads points back from a CSV written by [`bs_scene::findings::to_csv`]; the mesh
+/// Reads points back from a CSV written by [`crate::speed_accuracy::to_csv`]; the mesh
 /// diagonal (not stored) is taken from the case's scenes.
 pub fn read_csv(path: &Path, case: &Case) -> Result<Vec<ChartPoint>, String> {
     let text = std::fs::read_to_string(path)
@@ -526,8 +528,7 @@ pub fn main(o: &Options) -> Result<(), String> {
     }
     if only.is_none() {
         replace_block(&root().join("docs/speed-accuracy.md"), "findings", &findings)?;
-        let json = serde_json::to_string_pretty(&Findings::from_points(&all))
-            .map_err(|e| e.to_string())?;
+        let json = serde_json::to_string_pretty(&findings_of(&all)).map_err(|e| e.to_string())?;
         write(&root().join("crates/bs-scene/data/speed-accuracy.json"), &(json + "\n"))?;
     } else {
         print!("{findings}");

@@ -10,7 +10,8 @@
 //!   Newton–Krylov, contact against brute force, DR + contact against CalculiX);
 //! * [`stability`]: the stability map (time step, Poisson's ratio, hourglass control, load
 //!   until inversion, contact at sharp corners), its knife-edge and trace tools;
-//! * [`chart`] (drawn with [`plot`]): speed against accuracy;
+//! * [`chart`] (drawn with [`plot`]): speed against accuracy, its points, Pareto front and
+//!   the findings `brainshift check` embeds in [`speed_accuracy`];
 //! * [`fit`]: the measurement-fit fixture and study; [`ghost`]: the warped image where the
 //!   brain moved away;
 //! * [`bench`]: the benchmarks (`cargo xtask bench …`), ratios against a baseline run in the
@@ -27,6 +28,7 @@ pub mod ghost;
 pub mod plot;
 pub mod precond;
 pub mod reference;
+pub mod speed_accuracy;
 pub mod stability;
 pub mod study;
 pub mod util;

@@ -31,7 +31,6 @@ mod uncertainty;
 mod update;
 
 use history::History;
-pub use history::{SECANT_DEVIATION, secant_ratio};
 use sets::SetLoad;
 pub use update::{BoundaryValues, Update};
 
@@ -107,10 +106,10 @@ impl Session {
             let (s, pen, g) = crate::estimate::solve(p, c, &run.settings, observer)?;
             estimated = Some(g);
             (s, pen)
-        } else if crate::inverse::has_landmarks(&run.prepared) {
+        } else if crate::landmark_fit::has_landmarks(&run.prepared) {
             let warm = from.map(|w| w.state);
             let (p, c) = (&mut run.prepared, &mut run.composed);
-            let (s, pen, _) = crate::inverse::solve(p, c, &run.settings, warm, observer)?;
+            let (s, pen, _) = crate::landmark_fit::solve(p, c, &run.settings, warm, observer)?;
             (s, pen)
         } else {
             solve_composed_from(&mut run.composed, &run.settings, from, observer)

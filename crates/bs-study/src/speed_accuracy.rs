@@ -1,19 +1,17 @@
-//! Findings of the speed-versus-accuracy study, typed end to end: the measured points
-//! ([`ChartPoint`]), their Pareto front, the cheapest configuration per accuracy target, and
-//! the advice schema ([`Findings`]) that `cargo xtask chart` writes to
-//! `data/speed-accuracy.json` and `brainshift check` reads back (embedded at build time).
+//! The speed-against-accuracy study's points, typed end to end: one solved (or failed)
+//! configuration ([`ChartPoint`]), the Pareto front, the cheapest configuration per accuracy
+//! target, the CSV and markdown the chart writes, and the findings `brainshift check` embeds
+//! (bs-scene's `speed_accuracy::Findings`, built by [`findings_of`]).
 
 use std::fmt::Write as _;
 
-use serde::{Deserialize, Serialize};
-
-const DATA: &str = include_str!("../data/speed-accuracy.json");
+use bs_scene::speed_accuracy::{CaseFindings, Findings, Target};
 
 /// Accuracy targets named in the findings (mean nodal error, mm).
 pub const TARGETS: [f64; 2] = [0.1, 0.5];
 
 /// One solved (or failed) configuration.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct ChartPoint {
     /// Case name (`ellipsoid`, `mni152`).
     pub case: String,
@@ -232,120 +230,45 @@ pub fn from_csv(
     Ok(points)
 }
 
-/// The chart's findings.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Findings {
-    /// The command that wrote them.
-    #[serde(default)]
-    pub generated_by: String,
-    /// What the targets mean.
-    #[serde(default)]
-    pub note: String,
-    /// One entry per benchmark case.
-    pub cases: Vec<CaseFindings>,
-}
-
-/// The findings of one benchmark case.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct CaseFindings {
-    /// Case name.
-    pub case: String,
-    /// Mean element edge of the case's finest mesh (mm).
-    pub reference_mean_edge_mm: f64,
-    /// Bounding-box diagonal of the case's brain (mm).
-    pub diagonal_mm: f64,
-    /// Wall time of the reference solution (s).
-    #[serde(default)]
-    pub reference_seconds: f64,
-    /// The cheapest configuration per accuracy target.
-    pub targets: Vec<Target>,
-}
-
-/// The cheapest configuration that met one mean-error target.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Target {
-    /// Mean nodal error target (mm).
-    pub target_mm: f64,
-    /// Element technology (`t4`, `t4anp`).
-    pub element: String,
-    /// Solver (`newton-krylov`, `dr`); findings written before the Newton–Krylov solver
-    /// existed have none (they were DR).
-    #[serde(default = "dr")]
-    pub solver: String,
-    /// Contact handler (`none` without skull).
-    #[serde(default)]
-    pub handler: String,
-    /// Solver tolerance (mm).
-    pub tolerance_mm: f64,
-    /// Mean element edge of its mesh (mm).
-    pub mean_edge_mm: f64,
-    /// Its wall time on the benchmark machine (s).
-    pub seconds: f64,
-    /// Its measured mean error (mm).
-    pub mean_error_mm: f64,
-    /// Its largest nodal error (mm): at the rim of the prescribed patch, where each mesh
-    /// resolves the boundary of the set differently.
-    pub max_error_mm: f64,
-    /// Mesh level label (`coarse`, `default`, `fine`, …).
-    #[serde(default)]
-    pub level: String,
-}
-
-fn dr() -> String {
-    "dr".into()
-}
-
-/// The embedded findings.
-pub fn findings() -> Result<Findings, String> {
-    serde_json::from_str(DATA).map_err(|e| format!("embedded speed-accuracy findings: {e}"))
-}
-
-impl Findings {
-    /// The findings of solved cases: per case, its reference and the cheapest configuration
-    /// meeting each of [`TARGETS`]. Cases without a reference point are left out.
-    pub fn from_points(all: &[(String, Vec<ChartPoint>)]) -> Findings {
-        let cases = all
-            .iter()
-            .filter_map(|(case, points)| {
-                let r = points.iter().find(|p| p.is_reference)?;
-                let targets = TARGETS
-                    .iter()
-                    .filter_map(|&t| {
-                        cheapest(points, t).map(|p| Target {
-                            target_mm: t,
-                            element: p.element.clone(),
-                            solver: p.solver.clone(),
-                            handler: p.handler.clone(),
-                            tolerance_mm: p.tolerance,
-                            mean_edge_mm: p.mean_edge,
-                            seconds: p.seconds,
-                            mean_error_mm: p.mean_error,
-                            max_error_mm: p.max_error,
-                            level: p.level.clone(),
-                        })
+/// The findings of solved cases: per case, its reference and the cheapest configuration
+/// meeting each of [`TARGETS`]. Cases without a reference point are left out.
+pub fn findings_of(all: &[(String, Vec<ChartPoint>)]) -> Findings {
+    let cases = all
+        .iter()
+        .filter_map(|(case, points)| {
+            let r = points.iter().find(|p| p.is_reference)?;
+            let targets = TARGETS
+                .iter()
+                .filter_map(|&t| {
+                    cheapest(points, t).map(|p| Target {
+                        target_mm: t,
+                        element: p.element.clone(),
+                        solver: p.solver.clone(),
+                        handler: p.handler.clone(),
+                        tolerance_mm: p.tolerance,
+                        mean_edge_mm: p.mean_edge,
+                        seconds: p.seconds,
+                        mean_error_mm: p.mean_error,
+                        max_error_mm: p.max_error,
+                        level: p.level.clone(),
                     })
-                    .collect();
-                Some(CaseFindings {
-                    case: case.clone(),
-                    reference_mean_edge_mm: r.mean_edge,
-                    diagonal_mm: r.diagonal,
-                    reference_seconds: r.seconds,
-                    targets,
                 })
+                .collect();
+            Some(CaseFindings {
+                case: case.clone(),
+                reference_mean_edge_mm: r.mean_edge,
+                diagonal_mm: r.diagonal,
+                reference_seconds: r.seconds,
+                targets,
             })
-            .collect();
-        Findings {
-            generated_by: "cargo xtask chart".into(),
-            note: "cheapest configuration meeting each mean-error target, measured against the \
-                   finest converged solution"
-                .into(),
-            cases,
-        }
-    }
-
-    /// The findings embedded in this build.
-    pub fn embedded() -> Result<Findings, String> {
-        serde_json::from_str(DATA).map_err(|e| format!("embedded speed-accuracy findings: {e}"))
+        })
+        .collect();
+    Findings {
+        generated_by: "cargo xtask chart".into(),
+        note: "cheapest configuration meeting each mean-error target, measured against the \
+               finest converged solution"
+            .into(),
+        cases,
     }
 }
 
@@ -418,7 +341,7 @@ mod tests {
         r.is_reference = true;
         let all =
             vec![("t".to_string(), vec![r, point(1.0, 0.4), point(3.0, 0.05), point(2.0, 0.3)])];
-        let f = Findings::from_points(&all);
+        let f = findings_of(&all);
         let back: Findings = serde_json::from_str(&serde_json::to_string(&f).unwrap()).unwrap();
         assert_eq!(back, f);
         let t: Vec<(f64, f64)> =
