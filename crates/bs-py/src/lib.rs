@@ -51,7 +51,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("BrainshiftError", m.py().get_type::<BrainshiftError>())?;
     m.add_class::<scene::Scene>()?;
-    m.add_class::<result::RunResult>()?;
+    m.add_class::<result::VerifiedRun>()?;
     m.add_class::<session::Session>()?;
     m.add_class::<image::Image>()?;
     m.add_class::<image::InverseMap>()?;

@@ -21,7 +21,7 @@ type Surface<'py> =
 
 /// A verified run: displacements, node ids, the report, and `write(dir)`.
 #[pyclass(module = "brainshift", name = "Result", frozen)]
-pub(crate) struct RunResult {
+pub(crate) struct VerifiedRun {
     inner: Mutex<(Prepared, Solved)>,
     report: RunReport,
     report_json: String,
@@ -29,14 +29,14 @@ pub(crate) struct RunResult {
     node_ids: Vec<u64>,
 }
 
-impl RunResult {
-    pub(crate) fn new(run: &Run, solved: Solved, ctx: RunContext) -> RunResult {
+impl VerifiedRun {
+    pub(crate) fn new(run: &Run, solved: Solved, ctx: RunContext) -> VerifiedRun {
         let r = report(run, &solved, ctx);
         let report_json = serde_json::to_string(&r).expect("a report serialises");
         let displacements =
             solved.solution.displacements.iter().flat_map(|d| [d.x, d.y, d.z]).collect();
         let node_ids = run.prepared.mesh.node_ids.clone();
-        RunResult {
+        VerifiedRun {
             inner: Mutex::new((run.prepared.clone(), solved)),
             report: r,
             report_json,
@@ -46,7 +46,7 @@ impl RunResult {
     }
 }
 
-impl RunResult {
+impl VerifiedRun {
     /// This result as the registration outputs read it (mesh, displacements, frame, unit,
     /// skull).
     fn registration(&self, py: Python<'_>) -> PyResult<bs_register::registration::RunResult> {
@@ -69,7 +69,7 @@ impl RunResult {
 }
 
 #[pymethods]
-impl RunResult {
+impl VerifiedRun {
     /// Nodal displacements, float64 (n, 3), in the order of `node_ids`.
     #[getter]
     fn displacements<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {

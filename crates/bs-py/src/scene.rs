@@ -13,7 +13,7 @@ use pyo3::types::PyDict;
 use crate::convert::{
     f64_rows, from_json, index_rows, index_sets, observer, scene_err, skull_of, with_threads,
 };
-use crate::result::RunResult;
+use crate::result::VerifiedRun;
 
 /// A brain-shift scene: a mesh with materials, boundary conditions and optionally a skull.
 #[pyclass(module = "brainshift", frozen)]
@@ -152,7 +152,7 @@ impl Scene {
         py: Python<'_>,
         threads: Option<usize>,
         progress: Option<Py<PyAny>>,
-    ) -> PyResult<RunResult> {
+    ) -> PyResult<VerifiedRun> {
         let started = Instant::now();
         let prepared = self.prepared.clone();
         let mut callback_error: Option<PyErr> = None;
@@ -170,7 +170,7 @@ impl Scene {
             return Err(e);
         }
         let ctx = RunContext { total_seconds: started.elapsed().as_secs_f64(), threads };
-        Ok(RunResult::new(&run, solved, ctx))
+        Ok(VerifiedRun::new(&run, solved, ctx))
     }
 
     fn __repr__(&self) -> String {

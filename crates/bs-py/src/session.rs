@@ -16,7 +16,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
 use crate::convert::{f64_rows, index_rows, observer, scene_err, with_threads};
-use crate::result::RunResult;
+use crate::result::VerifiedRun;
 use crate::scene::Scene;
 
 /// A live session of a scene: `update` takes new measurements of the scene's prescribed
@@ -186,7 +186,7 @@ impl Session {
         points: Option<&Bound<'_, PyDict>>,
         gravity: Option<[f64; 3]>,
         progress: Option<Py<PyAny>>,
-    ) -> PyResult<RunResult> {
+    ) -> PyResult<VerifiedRun> {
         let updates = self.asked(py, displacements, surface, landmarks, points, gravity)?;
         self.solve_with(py, progress.as_ref(), |s, observe| s.apply(&updates, observe))
     }
@@ -200,7 +200,7 @@ impl Session {
         py: Python<'_>,
         region: &str,
         progress: Option<Py<PyAny>>,
-    ) -> PyResult<RunResult> {
+    ) -> PyResult<VerifiedRun> {
         self.solve_with(py, progress.as_ref(), |s, observe| s.resect(region, observe))
     }
 
@@ -275,7 +275,7 @@ impl Session {
             &mut dyn FnMut(&bs_scene::Progress),
         ) -> Result<bs_scene::Solved, SceneError>
         + Send,
-    ) -> PyResult<RunResult> {
+    ) -> PyResult<VerifiedRun> {
         let started = Instant::now();
         let mut callback_error: Option<PyErr> = None;
         let outcome = py.detach(|| {
@@ -285,7 +285,7 @@ impl Session {
                 let mut observe = observer(progress, &mut callback_error);
                 let solved = call(&mut s, &mut observe)?;
                 let ctx = RunContext { total_seconds: started.elapsed().as_secs_f64(), threads };
-                Ok::<_, SceneError>(RunResult::new(s.run(), solved, ctx))
+                Ok::<_, SceneError>(VerifiedRun::new(s.run(), solved, ctx))
             })
         });
         let result = outcome.map_err(PyValueError::new_err)?.map_err(|e| scene_err(py, e))?;

@@ -351,11 +351,32 @@ fn label(solver: Option<SolverKind>) -> &'static str {
     if solver == NK { "Newton-Krylov" } else { "DR" }
 }
 
+/// Every row of the map, in the order the table lists them; the quick scope stops after the
+/// block rows.
 fn rows(scope: Scope, dir: &Path) -> Result<Vec<Cell>, String> {
     let mut cells = Vec::new();
-    let tol = 1e-3;
     let t4 = indentation(dir, true, 8.0, as_built)?;
+    time_step_rows(&mut cells, &t4);
+    indentation_rows(&mut cells, dir);
+    sharp_corner_rows(&mut cells, dir)?;
+    poisson_rows(&mut cells, &t4);
+    if scope == Scope::Quick {
+        return Ok(cells);
+    }
+    hourglass_rows(&mut cells, dir, &t4)?;
+    ellipsoid_rows(&mut cells)?;
+    // The real brain: the clinical range of craniotomy pushes, and near incompressibility.
+    clinical::craniotomy(&mut cells)?;
+    clinical::poisson(&mut cells)?;
+    Ok(cells)
+}
 
+/// The tolerance every cell is solved to (mm).
+const TOL: f64 = 1e-3;
+
+/// DR's time step as a multiple of the element bound, and Newton–Krylov's forcing.
+fn time_step_rows(cells: &mut Vec<Cell>, t4: &Prepared) {
+    let tol = TOL;
     // Time step (DR): the element bound is a lower bound of the critical step (on this mesh
     // the true one is ≈1.6× it), so 0.5–1.25 must converge and ≥ 2 must be stopped.
     let row = "DR time step / element-bound critical";
@@ -366,14 +387,18 @@ fn rows(scope: Scope, dir: &Path) -> Result<Vec<Cell>, String> {
             solver: DR,
             ..Variant::default()
         };
-        cells.push(cell(row, format!("{f}x"), &v.solve(&t4), tol, String::new()));
+        cells.push(cell(row, format!("{f}x"), &v.solve(t4), tol, String::new()));
     }
     // Newton–Krylov has no time step; its counterpart is how loosely the inner linear
     // systems may be solved: from accurate to barely solved, it must converge or stop.
-    for s in forcing_specs(&t4) {
+    for s in forcing_specs(t4) {
         cells.push(cell(&s.row, s.value.clone(), &s.solve(), tol, String::new()));
     }
+}
 
+/// A 40 mm block indented until an element inverts, by both solvers.
+fn indentation_rows(cells: &mut Vec<Cell>, dir: &Path) {
+    let tol = TOL;
     // Growing indentation of a 40 mm block until an element inverts (a scene `check`
     // refuses is a guard too).
     for solver in [DR, NK] {
@@ -384,7 +409,11 @@ fn rows(scope: Scope, dir: &Path) -> Result<Vec<Cell>, String> {
             cells.push(cell(&s.row, s.value.clone(), &r, tol, note));
         }
     }
+}
 
+/// The paper's handler at sharp skull corners, with and without the §3.2 lists.
+fn sharp_corner_rows(cells: &mut Vec<Cell>, dir: &Path) -> Result<(), String> {
+    let tol = TOL;
     // Sharp skull corners: the paper's handler with and without the §3.2 lists, brute
     // force as the reference of each solver. (The block is squeezed 20 % into a tight box
     // with sharp edges; the two solvers may land in different equilibria of this folded
@@ -427,15 +456,20 @@ fn rows(scope: Scope, dir: &Path) -> Result<Vec<Cell>, String> {
             cells.push(c);
         }
     }
+    Ok(())
+}
 
+/// Poisson's ratio towards incompressibility, T4 against T4ANP, by both solvers.
+fn poisson_rows(cells: &mut Vec<Cell>, t4: &Prepared) {
+    let tol = TOL;
     // Poisson's ratio: T4 locks, T4ANP does not; deviation of T4 from T4ANP recorded.
     for solver in [DR, NK] {
         for element in [ElementChoice::T4, ElementChoice::T4anp] {
-            for s in poisson_specs(&t4, solver, element) {
+            for s in poisson_specs(t4, solver, element) {
                 let r = s.solve();
                 let note = if element == ElementChoice::T4 {
                     let v = Variant { element: Some(ElementChoice::T4anp), ..s.variant.clone() };
-                    match (&r, &v.solve(&t4)) {
+                    match (&r, &v.solve(t4)) {
                         (Ok(a), Ok(b)) => format!(
                             "mean |u - T4ANP| {:.2} mm",
                             difference(&a.displacements, &b.displacements, None).0
@@ -449,11 +483,11 @@ fn rows(scope: Scope, dir: &Path) -> Result<Vec<Cell>, String> {
             }
         }
     }
+}
 
-    if scope == Scope::Quick {
-        return Ok(cells);
-    }
-
+/// H8's hourglass coefficient: the default, a tenth and none, judged against T4ANP.
+fn hourglass_rows(cells: &mut Vec<Cell>, dir: &Path, t4: &Prepared) -> Result<(), String> {
+    let tol = TOL;
     // H8 hourglass control: the default coefficient, a tenth of it and none. Judged against
     // T4ANP on the same nodes (the tetrahedral block splits the same grid), an independent
     // locking-free element: a coefficient whose result is more than 3× farther from T4ANP
@@ -463,7 +497,7 @@ fn rows(scope: Scope, dir: &Path) -> Result<Vec<Cell>, String> {
     let row = "H8 hourglass coefficient, DR";
     let default = bs_dr::ModelOptions::default().hourglass;
     let anp = Variant { element: Some(ElementChoice::T4anp), solver: DR, ..Variant::default() }
-        .solve(&t4)
+        .solve(t4)
         .map_err(|e| format!("T4ANP block: {e}"))?;
     let off_t4anp = |r: &Result<Outcome, Failure>| {
         r.as_ref().ok().map(|o| difference(&o.displacements, &anp.displacements, None).1)
@@ -484,7 +518,11 @@ fn rows(scope: Scope, dir: &Path) -> Result<Vec<Cell>, String> {
         }
         cells.push(c);
     }
+    Ok(())
+}
 
+/// The paper's ellipsoid pushed 10–40 mm: DR's ramps, every mesh, CalculiX's outcome.
+fn ellipsoid_rows(cells: &mut Vec<Cell>) -> Result<(), String> {
     // The paper's ellipsoid, pushed 10–40 mm: DR with three load ramps on the coarse mesh
     // (a run that stops says at which ramp load), Newton–Krylov on every mesh, DR at 40 mm
     // on the rim and hexahedral meshes, and CalculiX's stored outcome.
@@ -508,10 +546,10 @@ fn rows(scope: Scope, dir: &Path) -> Result<Vec<Cell>, String> {
         }
     }
     for (name, scene) in meshes::MESHES {
-        meshes::by_mesh(&mut cells, name, scene)?;
+        meshes::by_mesh(cells, name, scene)?;
     }
     for (name, scene) in meshes::DR_MESHES {
-        meshes::dr_at_40mm(&mut cells, name, scene)?;
+        meshes::dr_at_40mm(cells, name, scene)?;
     }
     let dir = root().join("fixtures/ellipsoid/reference");
     let row = "ellipsoid load, CalculiX K=10";
@@ -536,11 +574,7 @@ fn rows(scope: Scope, dir: &Path) -> Result<Vec<Cell>, String> {
         println!("{:<34} {:<10} {}", c.row, c.value, Verdict::text(&c.verdict));
         cells.push(c);
     }
-
-    // The real brain: the clinical range of craniotomy pushes, and near incompressibility.
-    clinical::craniotomy(&mut cells)?;
-    clinical::poisson(&mut cells)?;
-    Ok(cells)
+    Ok(())
 }
 
 /// The cells as CSV (the metrics columns empty where a row has none).

@@ -73,7 +73,7 @@ pub fn compose_fits(p: &Prepared) -> Result<Option<FitState>, SceneError> {
 
 /// One composed measurement: its term, its rigid fit, its stiffness, the area it covers
 /// and how far it pulls.
-type Composed = (Term, Option<RigidFit>, f64, f64, f64);
+type MeasurementTerm = (Term, Option<RigidFit>, f64, f64, f64);
 
 /// What a scan measurement holds (the fields of `MeasuredData::Surface`).
 struct Scan<'a> {
@@ -86,7 +86,11 @@ struct Scan<'a> {
 
 /// A scan's term: misalignment undone, stiffness per area and sliding prior from the tissue
 /// under it.
-fn surface_term(p: &Prepared, m: &Measured, scan: &Scan<'_>) -> Result<Composed, SceneError> {
+fn surface_term(
+    p: &Prepared,
+    m: &Measured,
+    scan: &Scan<'_>,
+) -> Result<MeasurementTerm, SceneError> {
     let fit = match scan.bone {
         Some((_, b)) if m.rigid => Some(estimate_rigid(p, m, b)?),
         _ => None,
@@ -120,7 +124,7 @@ fn landmark_term(
     m: &Measured,
     pairs: &super::pairs::Pairs,
     anchors: &[(usize, bs_fit::Anchor)],
-) -> Composed {
+) -> MeasurementTerm {
     let pull = pairs.pre.iter().zip(&pairs.intra).map(|(a, b)| (b - a).norm()).fold(0.0, f64::max);
     let fit = LandmarkFit::new(
         anchors.iter().map(|(_, a)| *a).collect(),
