@@ -38,7 +38,7 @@
 //! for n in 0..3 { loads.fix_node(n)?; }          // base fixed
 //! loads.prescribe(3, 2, -0.1)?;                  // apex pushed down by 0.1
 //! let dr = DynamicRelaxation::new(DrParams::default());
-//! let sol = dr.solve(&model, &loads, &mut NoContact, &mut |_p| {})?;
+//! let sol = dr.solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_p| {}))?;
 //! assert!((sol.displacements[3].z + 0.1).abs() < 1e-12);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
@@ -152,12 +152,12 @@ pub use model::{Model, ModelError, ModelOptions};
 pub use newton::{Newton, NewtonError, NewtonInfo, NewtonParams};
 pub use nk::{
     ContinuationParams, LineSearchParams, NewtonKrylov, NewtonKrylovError, NewtonKrylovInfo,
-    NewtonKrylovParams, Preparation, Response, ResponseInfo, WarmStart,
+    NewtonKrylovParams, Preparation, PreparedNewtonKrylov, Response, ResponseInfo,
 };
 pub use post::ElementMeasures;
 pub use solver::{
-    Breakdown, ContinuationSummary, LoadFailure, Progress, Report, Solution, SolveError, Solver,
-    ToleranceUnit, load_scale,
+    Breakdown, ContinuationSummary, LoadFailure, Problem, Progress, Report, Solution, SolveError,
+    Solver, ToleranceUnit, WarmStart, load_scale,
 };
 
 #[cfg(test)]

@@ -9,6 +9,7 @@ use std::time::Duration;
 use bs_mesh::Vector3;
 
 use crate::contact::{Contact, ContactReport};
+use crate::data::{DataTerm, NoData};
 use crate::loads::Loads;
 use crate::model::Model;
 
@@ -337,21 +338,92 @@ pub enum LoadFailure {
     },
 }
 
-/// A static solver: DR and Newton are interchangeable behind this trait.
+/// Where a warm-started solve begins.
+#[derive(Debug, Clone, Copy)]
+pub struct WarmStart<'a> {
+    /// A converged state of other prescribed values.
+    pub state: &'a [Vector3<f64>],
+    /// The converged state before `state` and the ratio `s` of the prescribed change now
+    /// (from `state`'s values to the loads') to the change from its values to `state`'s,
+    /// when the prescribed values continue along that line: Newton–Krylov then starts from
+    /// the predictor `state + s (state − before)` (prescribed components at the loads'
+    /// values, contact predicted, capped by the elements) instead of the linearised response.
+    /// The other solvers use `state` alone.
+    pub secant: Option<(&'a [Vector3<f64>], f64)>,
+}
+
+/// A watcher of the path: the progress and the displacements after a step.
+pub type Watcher<'a> = dyn FnMut(&Progress, &[Vector3<f64>]) + 'a;
+
+/// What a solve is asked, whichever solver answers: the model and its loads, where to
+/// start, the contact and the measurements to honour, and who watches. The solver's own
+/// parameters are the solver's (`DrParams`, `NewtonKrylovParams`, `NewtonParams`).
+pub struct Problem<'a> {
+    /// The discretised body.
+    pub model: &'a Model,
+    /// Prescribed displacements (their final values) and nodal forces.
+    pub loads: &'a Loads,
+    /// A converged state of other prescribed values to move from (`None`: the reference
+    /// state). The prescribed components move from their values in it to the loads'.
+    pub start: Option<WarmStart<'a>>,
+    /// The kinematic contact, enforced after every step or iteration ([`NoContact`](crate::contact::NoContact)
+    /// without a skull).
+    pub contact: &'a mut dyn Contact,
+    /// The measurements' energy added to the strain energy ([`NoData`] without).
+    pub data: &'a mut dyn DataTerm,
+    /// Called once per step (DR) or iteration (Newton–Krylov, Newton).
+    pub observer: &'a mut dyn FnMut(&Progress),
+    /// Also sees the displacements after each step (what a trace of the path records);
+    /// Dynamic Relaxation calls it, the Newton solvers do not.
+    pub watch: Option<&'a mut Watcher<'a>>,
+}
+
+impl std::fmt::Debug for Problem<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Problem")
+            .field("nodes", &self.model.node_count())
+            .field("start", &self.start.map(|w| w.secant.is_some()))
+            .field("data", &self.data.is_active())
+            .field("watch", &self.watch.is_some())
+            .finish_non_exhaustive()
+    }
+}
+
+impl<'a> Problem<'a> {
+    /// `model` under `loads` from the reference state, with `contact` and `observer`, no
+    /// measurements and no watcher.
+    pub fn new(
+        model: &'a Model,
+        loads: &'a Loads,
+        contact: &'a mut dyn Contact,
+        observer: &'a mut dyn FnMut(&Progress),
+    ) -> Self {
+        // `NoData` is zero-sized: leaking a box of it allocates and leaks nothing.
+        let data: &'a mut NoData = Box::leak(Box::new(NoData));
+        Problem { model, loads, start: None, contact, data, observer, watch: None }
+    }
+
+    /// The same problem started from `state` (no secant).
+    pub fn from_state(self, state: &'a [Vector3<f64>]) -> Self {
+        Problem { start: Some(WarmStart { state, secant: None }), ..self }
+    }
+
+    /// The same problem with the measurements `data`.
+    pub fn with_data(self, data: &'a mut dyn DataTerm) -> Self {
+        Problem { data, ..self }
+    }
+}
+
+/// A static solver: Dynamic Relaxation, Newton–Krylov and Newton are interchangeable
+/// behind this trait (each also has an inherent `solve` of the same [`Problem`] returning
+/// its own info and error).
 pub trait Solver {
-    /// Solver name for reports.
+    /// Solver name, as scene files and reports spell it.
     fn name(&self) -> &'static str;
 
-    /// Solves for the equilibrium displacements of `model` under `loads` (prescribed
-    /// displacements reach their final values, zero traction elsewhere), with the kinematic
-    /// `contact` applied after every step, calling `observer` once per step or iteration.
-    fn solve(
-        &self,
-        model: &Model,
-        loads: &Loads,
-        contact: &mut dyn Contact,
-        observer: &mut dyn FnMut(&Progress),
-    ) -> Result<Solution, SolveError>;
+    /// Solves `problem` for the equilibrium displacements of its model under its loads
+    /// (prescribed displacements reach their final values, zero traction elsewhere).
+    fn solve(&self, problem: Problem<'_>) -> Result<Solution, SolveError>;
 }
 
 /// A solver parameter out of range: every solver's error has a variant for it.

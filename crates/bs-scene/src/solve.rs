@@ -4,7 +4,8 @@
 
 use bs_dr::{
     DrParams, DynamicRelaxation, MultilevelParams, Newton, NewtonKrylov, NewtonKrylovParams,
-    NewtonParams, Progress, Solution, SolveError, Solver, ToleranceUnit, WarmStart,
+    NewtonParams, PreparedNewtonKrylov, Problem, Progress, Solution, SolveError, Solver,
+    ToleranceUnit, WarmStart,
 };
 
 use crate::compose::Composed;
@@ -74,6 +75,28 @@ pub(crate) fn newton_krylov(s: &SolveSettings) -> NewtonKrylov {
     })
 }
 
+/// The Dynamic Relaxation solver for settings `s`.
+fn dynamic_relaxation(s: &SolveSettings) -> DynamicRelaxation {
+    let defaults = DrParams::default();
+    DynamicRelaxation::new(DrParams {
+        tolerance: s.tolerance,
+        tolerance_unit: ToleranceUnit::Length,
+        step_fraction: s.step_fraction,
+        max_steps: s.max_steps.unwrap_or(defaults.max_steps),
+        ramp_steps: s.ramp_steps,
+        ..defaults
+    })
+}
+
+/// The dense reference Newton solver for settings `s`.
+fn newton(s: &SolveSettings) -> Newton {
+    Newton::new(NewtonParams {
+        tolerance: s.tolerance,
+        tolerance_unit: ToleranceUnit::Length,
+        ..NewtonParams::default()
+    })
+}
+
 /// Computes what the chosen solver can compute before the loads are known (the
 /// Newton–Krylov preconditioner) and keeps it in `c`; nothing for the other solvers. A
 /// preparation already in `c` that fits its loads is reused.
@@ -101,14 +124,14 @@ pub fn solve_composed(
 /// warm-started update; for Newton–Krylov possibly with the state before it, see
 /// [`WarmStart`]), or from the reference state with `None`. Newton–Krylov and Dynamic
 /// Relaxation move the prescribed components from their values in the start state to the
-/// loads'; the dense reference Newton solver starts only from the reference state.
+/// loads'; the dense reference Newton solver starts only from the reference state. The
+/// solver is chosen by the settings and called through bs-dr's `Solver` seam.
 pub fn solve_composed_from(
     c: &mut Composed,
     s: &SolveSettings,
     warm: Option<WarmStart<'_>>,
     observer: &mut dyn FnMut(&Progress),
 ) -> Result<(Solution, f64), SolveError> {
-    let start = warm.map(|w| w.state);
     let mut max_penetration = 0.0f64;
     let mut observe = |pr: &Progress| {
         max_penetration = max_penetration.max(pr.contact.max_penetration);
@@ -129,45 +152,26 @@ pub fn solve_composed_from(
         Some(f) => &mut f.fits,
         None => &mut no_data,
     };
-    let solution = match s.kind {
+    let problem = Problem {
+        model: &c.model,
+        loads: &c.loads,
+        start: warm,
+        contact,
+        data,
+        observer: &mut observe,
+        watch: None,
+    };
+    let nk = newton_krylov(s);
+    let solver: Box<dyn Solver + '_> = match s.kind {
         SolverKind::NewtonKrylov => {
-            let prep = c.preparation.as_ref().expect("prepared above");
-            newton_krylov(s)
-                .solve_prepared_fit(&c.model, &c.loads, prep, warm, contact, data, &mut observe)
-                .map(Solution::into_common)
-                .map_err(SolveError::from)
+            let preparation = c.preparation.as_ref().expect("prepared above");
+            Box::new(PreparedNewtonKrylov { solver: &nk, preparation })
         }
-        // The baseline and the reference through the common trait: their own info and
-        // errors become the common report and error.
-        SolverKind::Dr => {
-            let defaults = DrParams::default();
-            let dr = DynamicRelaxation::new(DrParams {
-                tolerance: s.tolerance,
-                tolerance_unit: ToleranceUnit::Length,
-                step_fraction: s.step_fraction,
-                max_steps: s.max_steps.unwrap_or(defaults.max_steps),
-                ramp_steps: s.ramp_steps,
-                ..defaults
-            });
-            let zero = vec![bs_mesh::Vector3::zeros(); c.model.node_count()];
-            dr.solve_fit(&c.model, start.unwrap_or(&zero), &c.loads, contact, data, &mut observe)
-                .map(Solution::into_common)
-                .map_err(SolveError::from)
-        }
-        SolverKind::Newton if start.is_some() => Err(SolveError::Unsupported {
-            solver: "newton",
-            what: "a warm start from a previous state",
-            fix: "use kind = \"newton-krylov\" or \"dr\" for updates",
-        }),
-        SolverKind::Newton => {
-            let newton = Newton::new(NewtonParams {
-                tolerance: s.tolerance,
-                tolerance_unit: ToleranceUnit::Length,
-                ..NewtonParams::default()
-            });
-            Solver::solve(&newton, &c.model, &c.loads, contact, &mut observe)
-        }
-    }?;
+        SolverKind::Dr => Box::new(dynamic_relaxation(s)),
+        SolverKind::Newton => Box::new(newton(s)),
+    };
+    let solution = solver.solve(problem)?;
+    drop(solver);
     relinearise_at(c, &solution.displacements);
     Ok((solution, max_penetration))
 }

@@ -55,10 +55,10 @@ use self::guard::{GrowthGuard, StepChange};
 use self::rayleigh::RayleighEstimator;
 use crate::assembly::Workspace;
 use crate::contact::{Contact, ContactReport};
-use crate::data::{DataTerm, NoData, Springs};
+use crate::data::{DataTerm, Springs};
 use crate::loads::{Loads, ramp};
 use crate::model::Model;
-use crate::solver::{Progress, Solution, SolveError, Solver, load_scale};
+use crate::solver::{Problem, Progress, Solution, SolveError, Solver, load_scale};
 
 /// Steps between checks whether the element masses need refreshing at the current shapes.
 const REFRESH_INTERVAL: usize = 10;
@@ -275,50 +275,31 @@ impl DynamicRelaxation {
         std::f64::consts::FRAC_PI_2 * c / diag
     }
 
-    /// Solves for the equilibrium displacements of `model` under `loads` with the kinematic
-    /// `contact` enforced after every step, calling `observer` once per step.
-    pub fn solve(
-        &self,
-        model: &Model,
-        loads: &Loads,
-        contact: &mut dyn Contact,
-        observer: &mut dyn FnMut(&Progress),
-    ) -> Result<Solution<DrInfo>, DrError> {
-        let zero = vec![Vector3::zeros(); model.node_count()];
-        self.solve_from(model, &zero, loads, contact, observer)
+    /// Solves `problem`: its prescribed components ramp from their values in its start state
+    /// (zero without one) to the loads', the kinematic contact is enforced after every step
+    /// and the measurements' energy is an external force (see [`crate::data`]); the
+    /// observer is called once per step, the watcher (if any) with the displacements too.
+    pub fn solve(&self, problem: Problem<'_>) -> Result<Solution<DrInfo>, DrError> {
+        let Problem { model, loads, start, contact, data, observer, mut watch } = problem;
+        let zero;
+        let start = match start {
+            Some(w) => w.state,
+            None => {
+                zero = vec![Vector3::zeros(); model.node_count()];
+                &zero
+            }
+        };
+        let mut both = |p: &Progress, u: &[Vector3<f64>]| {
+            observer(p);
+            if let Some(w) = watch.as_mut() {
+                w(p, u);
+            }
+        };
+        self.run(model, start, loads, contact, data, &mut both)
     }
 
-    /// [`solve`](Self::solve) from the displacements `start` (at rest) instead of zero: the
-    /// prescribed components ramp from their values in `start` to those of `loads` (the
-    /// fallback of Newton–Krylov's continuation, which hands over its last converged state).
-    pub fn solve_from(
-        &self,
-        model: &Model,
-        start: &[Vector3<f64>],
-        loads: &Loads,
-        contact: &mut dyn Contact,
-        observer: &mut dyn FnMut(&Progress),
-    ) -> Result<Solution<DrInfo>, DrError> {
-        self.solve_fit(model, start, loads, contact, &mut NoData, observer)
-    }
-
-    /// [`solve_from`](Self::solve_from) with measurements: the answer minimises the strain
-    /// energy plus the energy of `data` (see [`crate::data`]), an external force here.
-    pub fn solve_fit(
-        &self,
-        model: &Model,
-        start: &[Vector3<f64>],
-        loads: &Loads,
-        contact: &mut dyn Contact,
-        data: &mut dyn DataTerm,
-        observer: &mut dyn FnMut(&Progress),
-    ) -> Result<Solution<DrInfo>, DrError> {
-        self.solve_watched(model, start, loads, contact, data, &mut |p, _| observer(p))
-    }
-
-    /// [`solve_fit`](Self::solve_fit) whose observer also sees the displacements after each
-    /// step (what a trace of the path records: kinetic energy, element shapes).
-    pub fn solve_watched(
+    /// The iteration behind [`solve`](Self::solve).
+    fn run(
         &self,
         model: &Model,
         start: &[Vector3<f64>],
@@ -410,13 +391,7 @@ impl Solver for DynamicRelaxation {
         "dr"
     }
 
-    fn solve(
-        &self,
-        model: &Model,
-        loads: &Loads,
-        contact: &mut dyn Contact,
-        observer: &mut dyn FnMut(&Progress),
-    ) -> Result<Solution, SolveError> {
-        Ok(DynamicRelaxation::solve(self, model, loads, contact, observer)?.into_common())
+    fn solve(&self, problem: Problem<'_>) -> Result<Solution, SolveError> {
+        Ok(DynamicRelaxation::solve(self, problem)?.into_common())
     }
 }

@@ -24,9 +24,8 @@ pub use params::NewtonParams;
 use self::system::TangentSystem;
 use crate::assembly::Workspace;
 use crate::contact::{Contact, ContactReport};
-use crate::loads::Loads;
 use crate::model::Model;
-use crate::solver::{Progress, Solution, SolveError, Solver, load_scale};
+use crate::solver::{Problem, Progress, Solution, SolveError, Solver, load_scale};
 
 /// The static Newton–Raphson solver.
 #[derive(Debug, Clone, Copy, Default)]
@@ -117,16 +116,24 @@ impl Newton {
         Newton { params }
     }
 
-    /// Solves for the equilibrium displacements of `model` under `loads` in equal load
-    /// steps; `contact` is only checked on the answer. `observer` is called once per
-    /// iteration.
-    pub fn solve(
-        &self,
-        model: &Model,
-        loads: &Loads,
-        contact: &mut dyn Contact,
-        observer: &mut dyn FnMut(&Progress),
-    ) -> Result<Solution<NewtonInfo>, NewtonError> {
+    /// Solves `problem` from the reference state in equal load steps; its contact is only
+    /// checked on the answer, its observer called once per iteration. A start state or
+    /// active measurements are refused ([`NewtonError::Unsupported`]): this is the
+    /// reference solver of the plain elastic problem.
+    pub fn solve(&self, problem: Problem<'_>) -> Result<Solution<NewtonInfo>, NewtonError> {
+        let Problem { model, loads, start, contact, data, observer, watch: _ } = problem;
+        if start.is_some() {
+            return Err(NewtonError::Unsupported {
+                what: "a warm start from a previous state",
+                fix: "use kind = \"newton-krylov\" or \"dr\" for updates",
+            });
+        }
+        if data.is_active() {
+            return Err(NewtonError::Unsupported {
+                what: "measurements",
+                fix: "use kind = \"newton-krylov\" or \"dr\" to fit measurements",
+            });
+        }
         let p = self.params;
         p.validate()?;
         let n = model.node_count();
@@ -242,13 +249,7 @@ impl Solver for Newton {
         "newton"
     }
 
-    fn solve(
-        &self,
-        model: &Model,
-        loads: &Loads,
-        contact: &mut dyn Contact,
-        observer: &mut dyn FnMut(&Progress),
-    ) -> Result<Solution, SolveError> {
-        Ok(Newton::solve(self, model, loads, contact, observer)?.into_common())
+    fn solve(&self, problem: Problem<'_>) -> Result<Solution, SolveError> {
+        Ok(Newton::solve(self, problem)?.into_common())
     }
 }

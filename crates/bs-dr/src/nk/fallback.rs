@@ -7,7 +7,7 @@
 
 use bs_mesh::Vector3;
 
-use super::problem::Problem;
+use super::problem::Context;
 use crate::dr::{DrError, DrInfo, DrParams, DynamicRelaxation};
 use crate::solver::{Progress, Solution};
 
@@ -24,7 +24,7 @@ pub(crate) const FALLBACK_MARGIN: f64 = 0.5;
 /// load. Progress is reported after the Newton iterations already taken (`offset`), with
 /// the load fraction of the whole path.
 pub(crate) fn dynamic_relaxation(
-    pb: &Problem<'_>,
+    pb: &Context<'_>,
     start: &[Vector3<f64>],
     done: f64,
     offset: usize,
@@ -43,5 +43,13 @@ pub(crate) fn dynamic_relaxation(
             ..*p
         })
     };
-    dr.solve_fit(pb.model, start, pb.loads, contact, data, &mut relay)
+    dr.solve(crate::solver::Problem {
+        model: pb.model,
+        loads: pb.loads,
+        start: Some(crate::solver::WarmStart { state: start, secant: None }),
+        contact,
+        data,
+        observer: &mut relay,
+        watch: None,
+    })
 }

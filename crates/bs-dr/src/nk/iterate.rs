@@ -8,7 +8,7 @@ use super::Work;
 use super::active_set::ActiveSet;
 use super::linear::{LinearBuffers, forces};
 use super::outcome::NewtonKrylovError;
-use super::problem::Problem;
+use super::problem::Context;
 use super::refresh::Following;
 use crate::assembly::Workspace;
 use crate::data::{DataTerm, Springs};
@@ -49,7 +49,7 @@ impl<'a> Iterate<'a> {
     /// The start state (zero displacement without one), the data term linearised there,
     /// and its forces.
     pub(crate) fn new(
-        pb: &Problem<'a>,
+        pb: &Context<'a>,
         work: &mut Work,
         data: &mut dyn DataTerm,
     ) -> Result<Self, NewtonKrylovError> {
@@ -93,7 +93,7 @@ impl<'a> Iterate<'a> {
     }
 
     /// `positions ← X + u` for every node.
-    pub(crate) fn set_positions(&mut self, pb: &Problem<'_>) {
+    pub(crate) fn set_positions(&mut self, pb: &Context<'_>) {
         let reference = pb.model.reference();
         self.positions.iter_mut().zip(reference.iter().zip(&self.u)).for_each(|(x, (x0, u))| {
             *x = x0 + u;
@@ -103,7 +103,7 @@ impl<'a> Iterate<'a> {
     /// The data term linearised again at the iterate: its forces in `f` move from the old
     /// springs to the new ones (no element work: the springs are linear in `u`). Returns
     /// whether the springs changed (the problem the iteration solves did).
-    pub(crate) fn relinearise(&mut self, pb: &Problem<'_>, data: &mut dyn DataTerm) -> bool {
+    pub(crate) fn relinearise(&mut self, pb: &Context<'_>, data: &mut dyn DataTerm) -> bool {
         let reference = pb.model.reference();
         let old = self.data.clone();
         self.data.add_forces_into(reference, &self.u, -1.0, &mut self.f);

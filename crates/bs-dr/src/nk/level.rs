@@ -17,7 +17,7 @@ use super::linear::forces;
 use super::loading::{self, Schedule};
 use super::merit::Merit;
 use super::outcome::NewtonKrylovError;
-use super::problem::Problem;
+use super::problem::Context;
 use super::termination::{Failure, Iteration, Termination, Verdict};
 use crate::contact::{Contact, ContactReport};
 use crate::data::DataTerm;
@@ -46,7 +46,7 @@ pub(crate) enum Level {
 
 /// Solves one level (see the module documentation).
 pub(crate) fn solve(
-    pb: &Problem<'_>,
+    pb: &Context<'_>,
     it: &mut Iterate<'_>,
     work: &mut Work,
     start: Start<'_>,
@@ -176,7 +176,7 @@ const MAX_JUMPS_PER: usize = 1000;
 /// The line search along `it.direction` from the first trial `first`; the trial taken is
 /// left in `it.trial_u` / `it.trial_f`. `None` when no trial could be evaluated.
 fn search(
-    pb: &Problem<'_>,
+    pb: &Context<'_>,
     it: &mut Iterate<'_>,
     work: &mut Work,
     first: f64,
@@ -210,7 +210,7 @@ fn search(
     Ok(outcome.step())
 }
 
-fn would_invert(pb: &Problem<'_>, element: Option<usize>) -> LoadFailure {
+fn would_invert(pb: &Context<'_>, element: Option<usize>) -> LoadFailure {
     match element {
         Some(e) => LoadFailure::WouldInvert { element: e, element_id: pb.model.element_ids()[e] },
         None => LoadFailure::Stalled { changes: 0 },
@@ -219,7 +219,7 @@ fn would_invert(pb: &Problem<'_>, element: Option<usize>) -> LoadFailure {
 
 /// Guards (not finite, diverged), the contact report of the iterate and the observer.
 fn observe(
-    pb: &Problem<'_>,
+    pb: &Context<'_>,
     it: &mut Iterate<'_>,
     work: &mut Work,
     lambda: f64,

@@ -18,7 +18,7 @@ use super::Work;
 use super::iterate::Iterate;
 use super::linear::{self, Linearisation, forces};
 use super::outcome::NewtonKrylovError;
-use super::problem::Problem;
+use super::problem::Context;
 use crate::assembly::Inversion;
 use crate::contact::Contact;
 
@@ -82,7 +82,7 @@ impl Schedule {
 /// the active set (plus, while loading to `lambda`, the prescribed values still to apply),
 /// then the linear solve to the relative residual `rtol`.
 pub(crate) fn direction(
-    pb: &Problem<'_>,
+    pb: &Context<'_>,
     it: &mut Iterate<'_>,
     work: &mut Work,
     lambda: Option<f64>,
@@ -137,7 +137,7 @@ pub(crate) fn direction(
 /// A load step from `s.applied` towards `s.target` into `it.direction` (see the module
 /// documentation). Returns the load fraction the step aims at.
 pub(crate) fn load_step(
-    pb: &Problem<'_>,
+    pb: &Context<'_>,
     it: &mut Iterate<'_>,
     work: &mut Work,
     s: &Schedule,
@@ -183,7 +183,7 @@ pub(crate) fn load_step(
 /// ellipsoid's 6 mm update: 94 held for 47, 8 iterations, against 48 and 6).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn predict(
-    pb: &Problem<'_>,
+    pb: &Context<'_>,
     it: &mut Iterate<'_>,
     work: &mut Work,
     before: &[Vector3<f64>],

@@ -85,9 +85,9 @@ use rayon::prelude::*;
 use self::continuation::Continuation;
 use self::iterate::{Converged, Iterate};
 use self::level::{Level, Start};
-use self::problem::Problem;
+use self::problem::Context;
 use crate::contact::{Contact, ContactReport};
-use crate::data::{DataTerm, NoData};
+use crate::data::DataTerm;
 use crate::linalg::multilevel::{Multilevel, Projector};
 use crate::loads::Loads;
 use crate::model::Model;
@@ -102,19 +102,6 @@ pub use self::response::{Response, ResponseInfo};
 pub struct NewtonKrylov {
     /// Parameters.
     pub params: NewtonKrylovParams,
-}
-
-/// Where a warm-started solve begins ([`NewtonKrylov::solve_prepared_warm`]).
-#[derive(Debug, Clone, Copy)]
-pub struct WarmStart<'a> {
-    /// A converged state of other prescribed values.
-    pub state: &'a [Vector3<f64>],
-    /// The converged state before `state` and the ratio `s` of the prescribed change now
-    /// (from `state`'s values to the loads') to the change from its values to `state`'s,
-    /// when the prescribed values continue along that line: the solve then starts from the
-    /// predictor `state + s (state − before)` (prescribed components at the loads' values,
-    /// contact predicted, capped by the elements) instead of the linearised response.
-    pub secant: Option<(&'a [Vector3<f64>], f64)>,
 }
 
 /// What [`NewtonKrylov::prepare`] computes: everything that depends only on the mesh, the
@@ -211,71 +198,23 @@ impl NewtonKrylov {
         Ok(Preparation { preconditioner, compliance, pattern })
     }
 
-    /// Solves with a preparation from [`prepare`](Self::prepare) for the same model and the
-    /// same prescribed components: load levels until the whole load is carried (the loop
-    /// below), each a Newton iteration ([`level`]).
+    /// Solves `problem` with a preparation from [`prepare`](Self::prepare) for the same model
+    /// and the same prescribed components: load levels until the whole load is carried (the
+    /// loop below), each a Newton iteration ([`level`]). From a start state the continuation
+    /// moves the prescribed components from their values there to the loads', its first level
+    /// the linearised response to that change, or with the start's `secant` the secant
+    /// predictor through the two last converged states (as later levels do). The measurements
+    /// are linearised again at every Newton iteration (see [`crate::data`]).
     pub fn solve_prepared(
         &self,
-        model: &Model,
-        loads: &Loads,
         prep: &Preparation,
-        contact: &mut dyn Contact,
-        observer: &mut dyn FnMut(&Progress),
+        problem: crate::solver::Problem<'_>,
     ) -> Result<Solution<NewtonKrylovInfo>, NewtonKrylovError> {
-        self.solve_prepared_from(model, loads, prep, None, contact, observer)
-    }
-
-    /// [`solve_prepared`](Self::solve_prepared) from the displacements `start` (a converged
-    /// state of other prescribed values, `None` for the reference state): the continuation
-    /// moves the prescribed components from their values in `start` to those of `loads`, its
-    /// first load step the linearised response to that change (the predictor of a
-    /// warm-started update).
-    pub fn solve_prepared_from(
-        &self,
-        model: &Model,
-        loads: &Loads,
-        prep: &Preparation,
-        start_state: Option<&[Vector3<f64>]>,
-        contact: &mut dyn Contact,
-        observer: &mut dyn FnMut(&Progress),
-    ) -> Result<Solution<NewtonKrylovInfo>, NewtonKrylovError> {
-        let warm = start_state.map(|state| WarmStart { state, secant: None });
-        self.solve_prepared_warm(model, loads, prep, warm, contact, observer)
-    }
-
-    /// [`solve_prepared_from`](Self::solve_prepared_from) from a [`WarmStart`]: with its
-    /// `secant`, the first level starts from the secant predictor through the two last
-    /// converged states (as the continuation's later levels do) instead of the linearised
-    /// response to the change of the prescribed values.
-    pub fn solve_prepared_warm(
-        &self,
-        model: &Model,
-        loads: &Loads,
-        prep: &Preparation,
-        warm: Option<WarmStart<'_>>,
-        contact: &mut dyn Contact,
-        observer: &mut dyn FnMut(&Progress),
-    ) -> Result<Solution<NewtonKrylovInfo>, NewtonKrylovError> {
-        self.solve_prepared_fit(model, loads, prep, warm, contact, &mut NoData, observer)
-    }
-
-    /// [`solve_prepared_warm`](Self::solve_prepared_warm) with measurements: the answer
-    /// minimises the strain energy plus the energy of `data` (see [`crate::data`]), which is
-    /// linearised again at every Newton iteration.
-    #[allow(clippy::too_many_arguments)]
-    pub fn solve_prepared_fit(
-        &self,
-        model: &Model,
-        loads: &Loads,
-        prep: &Preparation,
-        warm: Option<WarmStart<'_>>,
-        contact: &mut dyn Contact,
-        data: &mut dyn DataTerm,
-        observer: &mut dyn FnMut(&Progress),
-    ) -> Result<Solution<NewtonKrylovInfo>, NewtonKrylovError> {
+        let crate::solver::Problem { model, loads, start: warm, contact, data, observer, watch: _ } =
+            problem;
         let start = Instant::now();
         let start_state = warm.as_ref().map(|w| w.state);
-        let pb = Problem::new(&self.params, model, loads, prep, &*contact, start_state)?;
+        let pb = Context::new(&self.params, model, loads, prep, &*contact, start_state)?;
         let mut work = Work::default();
         let mut it = Iterate::new(&pb, &mut work, data)?;
         let mut saved = Converged::start(&it);
@@ -326,7 +265,7 @@ impl NewtonKrylov {
     #[allow(clippy::too_many_arguments)]
     fn fall_back(
         &self,
-        pb: &Problem<'_>,
+        pb: &Context<'_>,
         saved: &Converged,
         reached: f64,
         cause: LoadFailure,
@@ -379,7 +318,7 @@ impl NewtonKrylov {
     /// and the converged answer (smallest J 0.054) came out with J = −1.25 and was refused.
     fn finish(
         &self,
-        pb: &Problem<'_>,
+        pb: &Context<'_>,
         mut it: Iterate<'_>,
         cont: &Continuation,
         work: Work,
@@ -426,14 +365,27 @@ impl Solver for NewtonKrylov {
         "newton-krylov"
     }
 
-    fn solve(
-        &self,
-        model: &Model,
-        loads: &Loads,
-        contact: &mut dyn Contact,
-        observer: &mut dyn FnMut(&Progress),
-    ) -> Result<Solution, SolveError> {
-        let prep = self.prepare(model, loads)?;
-        Ok(self.solve_prepared(model, loads, &prep, contact, observer)?.into_common())
+    /// Prepares for the problem's model and loads, then solves.
+    fn solve(&self, problem: crate::solver::Problem<'_>) -> Result<Solution, SolveError> {
+        let prep = self.prepare(problem.model, problem.loads)?;
+        Ok(self.solve_prepared(&prep, problem)?.into_common())
+    }
+}
+
+/// A Newton–Krylov solver with its preparation: the [`Solver`] a caller that keeps the
+/// preparation across solves (a live session, a study) hands on.
+#[derive(Debug, Clone, Copy)]
+pub struct PreparedNewtonKrylov<'a> {
+    pub solver: &'a NewtonKrylov,
+    pub preparation: &'a Preparation,
+}
+
+impl Solver for PreparedNewtonKrylov<'_> {
+    fn name(&self) -> &'static str {
+        "newton-krylov"
+    }
+
+    fn solve(&self, problem: crate::solver::Problem<'_>) -> Result<Solution, SolveError> {
+        Ok(self.solver.solve_prepared(self.preparation, problem)?.into_common())
     }
 }

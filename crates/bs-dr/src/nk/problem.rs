@@ -15,7 +15,7 @@ use crate::solver::load_scale;
 use super::active_set::NodeState;
 
 /// The read-only side of a solve.
-pub(crate) struct Problem<'a> {
+pub(crate) struct Context<'a> {
     pub model: &'a Model,
     pub loads: &'a Loads,
     /// The preparation's preconditioner (built at the reference state).
@@ -39,7 +39,7 @@ pub(crate) struct Problem<'a> {
     pub start: Option<&'a [Vector3<f64>]>,
 }
 
-impl<'a> Problem<'a> {
+impl<'a> Context<'a> {
     /// Checks that `loads`, `prep` and `contact` fit `model`.
     pub(crate) fn new(
         params: &'a NewtonKrylovParams,
@@ -80,7 +80,7 @@ impl<'a> Problem<'a> {
             is_contact[a] = true;
         }
         let scale = load_scale(model, loads);
-        Ok(Problem {
+        Ok(Context {
             model,
             loads,
             base: &prep.preconditioner,

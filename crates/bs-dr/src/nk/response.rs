@@ -14,7 +14,7 @@ use super::Work;
 use super::iterate::Iterate;
 use super::linear::{self, Linearisation};
 use super::outcome::NewtonKrylovError;
-use super::problem::Problem;
+use super::problem::Context;
 use super::{NewtonKrylov, Preparation};
 use crate::contact::Contact;
 use crate::data::DataTerm;
@@ -34,7 +34,7 @@ pub struct ResponseInfo {
 /// The tangent at a converged state, ready to give responses
 /// ([`NewtonKrylov::with_response`]).
 pub struct Response<'p, 'a> {
-    pb: &'p Problem<'a>,
+    pb: &'p Context<'a>,
     it: Iterate<'a>,
     work: Work,
 }
@@ -106,7 +106,7 @@ impl NewtonKrylov {
         data: &mut dyn DataTerm,
         f: impl FnOnce(&mut Response<'_, '_>) -> R,
     ) -> Result<R, NewtonKrylovError> {
-        let pb = Problem::new(&self.params, model, loads, prep, &*contact, Some(state))?;
+        let pb = Context::new(&self.params, model, loads, prep, &*contact, Some(state))?;
         let mut work = Work::default();
         let mut it = Iterate::new(&pb, &mut work, data)?;
         it.active.choose(contact, &pb.nodes, &pb.node_state(&it.u, &it.f))?;

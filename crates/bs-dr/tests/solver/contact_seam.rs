@@ -39,13 +39,14 @@ fn frictionless_floor_acts_as_a_symmetry_plane() {
         sym.fix(i, 2).unwrap();
     }
     let dr = DynamicRelaxation::new(DrParams { tolerance: 1e-9, ..Default::default() });
-    let reference = dr.solve(&model, &sym, &mut NoContact, &mut |_| {}).unwrap();
+    let reference =
+        dr.solve(bs_dr::Problem::new(&model, &sym, &mut NoContact, &mut |_| {})).unwrap();
     let mut contact = Floor { calls: 0 };
     let mut max_in_contact = 0;
     let sol = dr
-        .solve(&model, &floor, &mut contact, &mut |p| {
+        .solve(bs_dr::Problem::new(&model, &floor, &mut contact, &mut |p| {
             max_in_contact = max_in_contact.max(p.contact.nodes_in_contact)
-        })
+        }))
         .unwrap();
     // Called once per step; the 16 bottom nodes are pushed into the floor during loading.
     assert_eq!(contact.calls, sol.report.steps);
@@ -123,7 +124,7 @@ fn brain_shift_like_run_in_a_spherical_skull() {
     }
     assert!(cap >= 5 && stem >= 5, "cap {cap}, stem {stem}");
     let dr = DynamicRelaxation::new(DrParams { tolerance: 1e-6, ..Default::default() });
-    let free = dr.solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
+    let free = dr.solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {})).unwrap();
     let bulge = free
         .displacements
         .iter()
@@ -135,7 +136,9 @@ fn brain_shift_like_run_in_a_spherical_skull() {
     let mut skull = SphereSkull { radius, slave };
     let mut in_contact = 0;
     let sol = dr
-        .solve(&model, &loads, &mut skull, &mut |p| in_contact = p.contact.nodes_in_contact)
+        .solve(bs_dr::Problem::new(&model, &loads, &mut skull, &mut |p| {
+            in_contact = p.contact.nodes_in_contact
+        }))
         .unwrap();
     assert!(in_contact > 0, "contact inactive at convergence");
     for (i, (u, x)) in sol.displacements.iter().zip(&mesh.nodes).enumerate() {

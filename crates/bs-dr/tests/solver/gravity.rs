@@ -74,7 +74,10 @@ fn error(mesh: &Mesh, u: &[Vector3<f64>], submerged: bool) -> (f64, f64) {
 }
 
 fn solve(solver: &dyn Solver, model: &Model, loads: &Loads) -> Vec<Vector3<f64>> {
-    solver.solve(model, loads, &mut NoContact, &mut |_| {}).unwrap().displacements
+    solver
+        .solve(bs_dr::Problem::new(model, loads, &mut NoContact, &mut |_| {}))
+        .unwrap()
+        .displacements
 }
 
 #[test]
@@ -146,7 +149,9 @@ fn the_linear_response_to_more_weight_is_the_difference_of_two_solves() {
         let at = |f: f64| {
             let l = loads_scaled(&mesh, &model, f);
             let prep = nk.prepare(&model, &l).unwrap();
-            nk.solve_prepared(&model, &l, &prep, &mut NoContact, &mut |_| {}).unwrap().displacements
+            nk.solve_prepared(&prep, bs_dr::Problem::new(&model, &l, &mut NoContact, &mut |_| {}))
+                .unwrap()
+                .displacements
         };
         let (u, up, down) = (at(1.0), at(1.01), at(0.99));
         let loads = loads_scaled(&mesh, &model, 1.0);

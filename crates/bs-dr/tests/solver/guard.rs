@@ -134,11 +134,15 @@ fn time_step_above_critical_trips_the_guard_before_nan() {
         let params = DrParams { step_fraction: factor * critical_fraction, ..Default::default() };
         let mut saw_non_finite = false;
         let mut steps = 0;
-        let result =
-            DynamicRelaxation::new(params).solve(&model, &loads, &mut NoContact, &mut |p| {
+        let result = DynamicRelaxation::new(params).solve(bs_dr::Problem::new(
+            &model,
+            &loads,
+            &mut NoContact,
+            &mut |p| {
                 steps = p.step;
                 saw_non_finite |= !p.max_displacement.is_finite();
-            });
+            },
+        ));
         assert!(!saw_non_finite, "observer saw a non-finite displacement at {factor}x");
         match result {
             Err(DrError::Unstable { step, growth, step_fraction, .. }) => {
@@ -153,7 +157,12 @@ fn time_step_above_critical_trips_the_guard_before_nan() {
         }
     }
     // And the same problem converges at 0.8 of the element bound.
-    let ok = DynamicRelaxation::default().solve(&model, &loads, &mut NoContact, &mut |_| {});
+    let ok = DynamicRelaxation::default().solve(bs_dr::Problem::new(
+        &model,
+        &loads,
+        &mut NoContact,
+        &mut |_| {},
+    ));
     assert!(ok.is_ok(), "{ok:?}");
 }
 
@@ -195,9 +204,14 @@ fn element_inverted_during_the_solve_is_named() {
     let centre = node_index(2, 1, 1, 1);
     loads.prescribe_node(centre, Vector3::new(0.0, 0.0, -0.75)).unwrap();
     let mut saw_non_finite = false;
-    let result = DynamicRelaxation::default().solve(&model, &loads, &mut NoContact, &mut |p| {
-        saw_non_finite |= !p.max_displacement.is_finite();
-    });
+    let result = DynamicRelaxation::default().solve(bs_dr::Problem::new(
+        &model,
+        &loads,
+        &mut NoContact,
+        &mut |p| {
+            saw_non_finite |= !p.max_displacement.is_finite();
+        },
+    ));
     assert!(!saw_non_finite);
     match result {
         Err(DrError::ElementInverted { element, element_id, jacobian, step }) => {

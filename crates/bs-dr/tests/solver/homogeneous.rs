@@ -68,7 +68,8 @@ fn uniaxial_compression_with_symmetry_planes() {
                 loads.prescribe(i, 2, (lz - 1.0) * size).unwrap();
             }
         }
-        let sol = dr().solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
+        let sol =
+            dr().solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {})).unwrap();
         let exact: Vec<Vector3<f64>> = mesh
             .nodes
             .iter()
@@ -100,7 +101,8 @@ fn simple_shear_with_prescribed_boundary() {
                 loads.prescribe_node(i, Vector3::new(gamma * p.z, 0.0, 0.0)).unwrap();
             }
         }
-        let sol = dr().solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
+        let sol =
+            dr().solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {})).unwrap();
         let mut worst = 0.0f64;
         let mut interior = 0;
         for (i, p) in mesh.nodes.iter().enumerate() {
@@ -147,7 +149,8 @@ fn uniaxial_compression_on_gmsh_fixtures() {
                 loads.prescribe(i, 2, lz - 1.0).unwrap();
             }
         }
-        let sol = dr().solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
+        let sol =
+            dr().solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {})).unwrap();
         let mut worst = 0.0f64;
         for (i, p) in mesh.nodes.iter().enumerate() {
             let exact = Vector3::new((lt - 1.0) * p.x, (lt - 1.0) * p.y, (lz - 1.0) * p.z);
@@ -189,7 +192,8 @@ fn simple_shear_other_laws() {
             Model::new(&mesh, &[ogden, heavy_ogden], &alternate, ModelOptions::default()).unwrap(),
         ),
     ] {
-        let sol = dr().solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
+        let sol =
+            dr().solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {})).unwrap();
         let diff = max_diff(&sol.displacements, &exact);
         assert!(diff <= 1e-6 * gamma * size, "{name}: interior error {diff:e}");
     }

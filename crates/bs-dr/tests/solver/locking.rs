@@ -41,12 +41,12 @@ fn t4_locks_and_t4anp_does_not() {
         let (loads, patch) = indentation(&mesh);
         let sol = if tech == Tech::T4Anp {
             DynamicRelaxation::new(DrParams::default())
-                .solve(&model, &loads, &mut NoContact, &mut |_| {})
+                .solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {}))
                 .unwrap()
                 .into_common()
         } else {
             Newton::default()
-                .solve(&model, &loads, &mut NoContact, &mut |_| {})
+                .solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {}))
                 .unwrap()
                 .into_common()
         };

@@ -37,9 +37,11 @@ fn matches_newton_without_contact() {
             cube_model(tech, 4, 1.0, 0.2, Material::neo_hookean(3000.0, 0.45).unwrap());
         let loads = clamp_and_push(&mesh, 1.0, 0.2);
         let newton = Newton::new(NewtonParams { tolerance: 1e-11, ..Default::default() })
-            .solve(&model, &loads, &mut NoContact, &mut |_| {})
+            .solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {}))
             .unwrap();
-        let sol = nk(1e-8).solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
+        let sol = nk(1e-8)
+            .solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {}))
+            .unwrap();
         let diff = max_diff(&sol.displacements, &newton.displacements);
         // Both converged far below the difference that matters; NK's estimate bounds it.
         assert!(
@@ -61,9 +63,10 @@ fn t4anp_matches_dynamic_relaxation_without_contact() {
         cube_model(Tech::T4Anp, 4, 1.0, 0.2, Material::neo_hookean(3000.0, 0.49).unwrap());
     let loads = clamp_and_push(&mesh, 1.0, 0.15);
     let dr = DynamicRelaxation::new(DrParams { tolerance: 1e-9, ..Default::default() })
-        .solve(&model, &loads, &mut NoContact, &mut |_| {})
+        .solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {}))
         .unwrap();
-    let sol = nk(1e-9).solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
+    let sol =
+        nk(1e-9).solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {})).unwrap();
     let diff = max_diff(&sol.displacements, &dr.displacements);
     assert!(diff <= 1e-7, "{diff:e}");
     // The prescribed components are exactly their values.
@@ -164,12 +167,14 @@ fn frictionless_floor_acts_as_a_symmetry_plane() {
     for &i in &bottom {
         sym.fix(i, 2).unwrap();
     }
-    let reference = nk(1e-10).solve(&model, &sym, &mut NoContact, &mut |_| {}).unwrap();
+    let reference =
+        nk(1e-10).solve(bs_dr::Problem::new(&model, &sym, &mut NoContact, &mut |_| {})).unwrap();
     // The floor governs the bottom nodes, some of which have fixed x or y (on the symmetry
     // planes): the contact directions are taken orthogonal to those.
     let mut contact =
         Planes { planes: vec![(-Vector3::z(), 0.0)], nodes: bottom, projected_on_edge: 0 };
-    let sol = nk(1e-10).solve(&model, &floor, &mut contact, &mut |_| {}).unwrap();
+    let sol =
+        nk(1e-10).solve(bs_dr::Problem::new(&model, &floor, &mut contact, &mut |_| {})).unwrap();
     assert_eq!(sol.report.contact.nodes_in_contact, 16);
     let diff = max_diff(&sol.displacements, &reference.displacements);
     assert!(diff <= 1e-8, "floor vs symmetry plane: {diff:e}");
@@ -204,10 +209,11 @@ fn corner_of_floor_and_wall_matches_dynamic_relaxation() {
     let mut with_dr =
         Planes { planes: planes.clone(), nodes: slaves.clone(), projected_on_edge: 0 };
     let dr = DynamicRelaxation::new(DrParams { tolerance: 1e-9, ..Default::default() })
-        .solve(&model, &loads, &mut with_dr, &mut |_| {})
+        .solve(bs_dr::Problem::new(&model, &loads, &mut with_dr, &mut |_| {}))
         .unwrap();
     let mut with_nk = Planes { planes, nodes: slaves, projected_on_edge: 0 };
-    let sol = nk(1e-9).solve(&model, &loads, &mut with_nk, &mut |_| {}).unwrap();
+    let sol =
+        nk(1e-9).solve(bs_dr::Problem::new(&model, &loads, &mut with_nk, &mut |_| {})).unwrap();
     let diff = max_diff(&sol.displacements, &dr.displacements);
     assert!(diff <= 1e-6, "NK vs DR: {diff:e}");
     // Both faces and their edge were in play, and the answer is admissible.
@@ -295,9 +301,9 @@ fn sphere_case() -> (bs_dr::Model, Loads, Sphere) {
 fn sphere_skull_matches_dynamic_relaxation() {
     let (model, loads, mut skull) = sphere_case();
     let dr = DynamicRelaxation::new(DrParams { tolerance: 1e-8, ..Default::default() })
-        .solve(&model, &loads, &mut skull, &mut |_| {})
+        .solve(bs_dr::Problem::new(&model, &loads, &mut skull, &mut |_| {}))
         .unwrap();
-    let sol = nk(1e-8).solve(&model, &loads, &mut skull, &mut |_| {}).unwrap();
+    let sol = nk(1e-8).solve(bs_dr::Problem::new(&model, &loads, &mut skull, &mut |_| {})).unwrap();
     assert!(sol.report.contact.nodes_in_contact > 0);
     let diff = max_diff(&sol.displacements, &dr.displacements);
     assert!(diff <= 1e-5 * 1.5, "NK vs DR: {diff:e}");
@@ -312,8 +318,11 @@ fn sphere_skull_matches_dynamic_relaxation() {
 fn error_estimate_bounds_the_true_error_with_contact() {
     let (model, loads, mut skull) = sphere_case();
     for tol in [1e-3, 1e-4] {
-        let loose = nk(tol).solve(&model, &loads, &mut skull, &mut |_| {}).unwrap();
-        let tight = nk(tol / 100.0).solve(&model, &loads, &mut skull, &mut |_| {}).unwrap();
+        let loose =
+            nk(tol).solve(bs_dr::Problem::new(&model, &loads, &mut skull, &mut |_| {})).unwrap();
+        let tight = nk(tol / 100.0)
+            .solve(bs_dr::Problem::new(&model, &loads, &mut skull, &mut |_| {}))
+            .unwrap();
         assert!(loose.report.contact.nodes_in_contact > 0);
         let true_error = max_diff(&loose.displacements, &tight.displacements);
         assert!(
@@ -331,7 +340,7 @@ fn bit_identical_for_1_and_2_threads() {
     let run = |threads: usize| {
         rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| {
             let (_, _, mut skull) = sphere_case();
-            nk(1e-6).solve(&model, &loads, &mut skull, &mut |_| {}).unwrap()
+            nk(1e-6).solve(bs_dr::Problem::new(&model, &loads, &mut skull, &mut |_| {})).unwrap()
         })
     };
     let (a, b) = (run(1), run(2));
@@ -363,8 +372,9 @@ fn guards_are_typed_errors() {
     let (mesh, model) = cube_model(Tech::T4, 3, 1.0, 0.2, material);
     // A contact without projection.
     let loads = clamp_and_push(&mesh, 1.0, 0.1);
-    let err =
-        nk(1e-6).solve(&model, &loads, &mut EnforceOnly(vec![1, 2]), &mut |_| {}).unwrap_err();
+    let err = nk(1e-6)
+        .solve(bs_dr::Problem::new(&model, &loads, &mut EnforceOnly(vec![1, 2]), &mut |_| {}))
+        .unwrap_err();
     assert!(matches!(err, SolveError::Unsupported { .. }), "{err}");
     // Too few iterations, no fallback: the load not carried, with the budget named.
     let few = NewtonKrylov::new(NewtonKrylovParams {
@@ -373,7 +383,8 @@ fn guards_are_typed_errors() {
         continuation: ContinuationParams { fallback: false, ..Default::default() },
         ..Default::default()
     });
-    let err = few.solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap_err();
+    let err =
+        few.solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {})).unwrap_err();
     assert!(
         matches!(
             err,
@@ -393,8 +404,10 @@ fn guards_are_typed_errors() {
         max_iterations: 1,
         ..Default::default()
     });
-    let fell_back = few.solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
-    let full = nk(1e-6).solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
+    let fell_back =
+        few.solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {})).unwrap();
+    let full =
+        nk(1e-6).solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {})).unwrap();
     let diff = fell_back
         .displacements
         .iter()
@@ -404,11 +417,14 @@ fn guards_are_typed_errors() {
     assert!(diff < 1e-4, "{diff}");
     // Crushing the block beyond its height inverts elements.
     let crush = clamp_and_push(&mesh, 1.0, 1.2);
-    let err = nk(1e-6).solve(&model, &crush, &mut NoContact, &mut |_| {}).unwrap_err();
+    let err = nk(1e-6)
+        .solve(bs_dr::Problem::new(&model, &crush, &mut NoContact, &mut |_| {}))
+        .unwrap_err();
     assert!(matches!(err, SolveError::ElementInverted { .. }), "{err}");
     // Invalid parameters.
     let bad = NewtonKrylov::new(NewtonKrylovParams { forcing_max: 1.5, ..Default::default() });
-    let err = bad.solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap_err();
+    let err =
+        bad.solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {})).unwrap_err();
     assert!(matches!(err, SolveError::InvalidParams { name: "forcing_max", .. }), "{err}");
 }
 
@@ -444,9 +460,12 @@ fn the_converged_answer_is_corrected_by_the_exact_projection_not_by_enforce() {
         nodes,
         projected_on_edge: 0,
     };
-    let honest = nk(1e-10).solve(&model, &loads, &mut floor(bottom.clone()), &mut |_| {}).unwrap();
+    let honest = nk(1e-10)
+        .solve(bs_dr::Problem::new(&model, &loads, &mut floor(bottom.clone()), &mut |_| {}))
+        .unwrap();
     let mut wrong = WrongEnforce(floor(bottom));
-    let sol = nk(1e-10).solve(&model, &loads, &mut wrong, &mut |_| {}).unwrap();
+    let sol =
+        nk(1e-10).solve(bs_dr::Problem::new(&model, &loads, &mut wrong, &mut |_| {})).unwrap();
     let diff = max_diff(&sol.displacements, &honest.displacements);
     assert!(diff <= 1e-12, "{diff:e}");
     assert_eq!(sol.report.contact.nodes_in_contact, honest.report.contact.nodes_in_contact);
@@ -471,7 +490,9 @@ fn a_budget_spent_while_loading_ends_at_a_converged_fraction_of_the_load() {
         ..Default::default()
     });
     let mut applied = Vec::new();
-    let err = few.solve(&model, &loads, &mut NoContact, &mut |p| applied.push(p.load_factor));
+    let err = few.solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |p| {
+        applied.push(p.load_factor)
+    }));
     let first = applied[0];
     assert!(first > 0.5 && first < 1.0, "the first load step is cut short: {first}");
     match err {

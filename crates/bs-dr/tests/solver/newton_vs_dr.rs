@@ -28,11 +28,11 @@ fn dr_matches_newton_within_1e_3_mm() {
             cube_model(tech, 4, size, 0.2, Material::neo_hookean(3000.0, 0.45).unwrap());
         let loads = clamp_and_push(&mesh, size, 0.2 * size);
         let newton = Newton::new(NewtonParams::default())
-            .solve(&model, &loads, &mut NoContact, &mut |_| {})
+            .solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {}))
             .unwrap();
         // DR tolerance 1e-7 × 2 mm: the termination estimate is far below the 1e-3 mm asserted.
         let dr = DynamicRelaxation::new(DrParams { tolerance: 1e-7, ..Default::default() })
-            .solve(&model, &loads, &mut NoContact, &mut |_| {})
+            .solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {}))
             .unwrap();
         let diff = max_diff(&newton.displacements, &dr.displacements);
         // The answer is not trivial: the sides bulge by a sizeable fraction of a mm.
@@ -52,7 +52,8 @@ fn newton_rejects_anp() {
     let (mesh, model) =
         cube_model(Tech::T4Anp, 2, 1.0, 0.0, Material::neo_hookean(3000.0, 0.45).unwrap());
     let loads = clamp_and_push(&mesh, 1.0, 0.1);
-    let r = Newton::default().solve(&model, &loads, &mut NoContact, &mut |_| {});
+    let r =
+        Newton::default().solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {}));
     assert!(
         matches!(r, Err(bs_dr::NewtonError::Unsupported { what: "T4ANP tetrahedra", .. })),
         "{r:?}"
@@ -68,11 +69,14 @@ fn solvers_are_swappable_behind_the_trait() {
     let loads = clamp_and_push(&mesh, 1.0, 0.05);
     let dr = DynamicRelaxation::default();
     let newton = Newton::default();
-    let own_dr = dr.solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
-    let own_newton = newton.solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
+    let own_dr =
+        dr.solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {})).unwrap();
+    let own_newton =
+        newton.solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {})).unwrap();
     let solvers: [&dyn Solver; 2] = [&dr, &newton];
     for s in solvers {
-        let common = s.solve(&model, &loads, &mut NoContact, &mut |_| {}).unwrap();
+        let common =
+            s.solve(bs_dr::Problem::new(&model, &loads, &mut NoContact, &mut |_| {})).unwrap();
         let (u, steps, evaluations) = match s.name() {
             "dr" => (&own_dr.displacements, own_dr.report.steps, own_dr.report.steps),
             _ => (

@@ -65,10 +65,14 @@ fn dr_history_is_bit_identical_for_1_and_2_threads() {
     let run = |threads: usize| {
         pool(threads).install(|| {
             let mut trace = Vec::new();
-            let r =
-                DynamicRelaxation::new(params).solve(&model, &loads, &mut NoContact, &mut |p| {
+            let r = DynamicRelaxation::new(params).solve(bs_dr::Problem::new(
+                &model,
+                &loads,
+                &mut NoContact,
+                &mut |p| {
                     trace.push(p.max_displacement.to_bits());
-                });
+                },
+            ));
             assert!(matches!(r, Err(bs_dr::DrError::NoConvergence { steps: 60, .. })), "{r:?}");
             trace
         })

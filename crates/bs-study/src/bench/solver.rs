@@ -254,18 +254,14 @@ fn dr_against_newton(page: &mut Page, t4_mesh: &Mesh) -> Result<(), String> {
         t4_mesh.elements.len()
     );
     let (dr, newton) = pool(2).install(|| {
-        let dr = DynamicRelaxation::new(DrParams::default()).solve(
+        let dr = DynamicRelaxation::new(DrParams::default()).solve(bs_dr::Problem::new(
             &m,
             &loads,
             &mut NoContact,
             &mut |_| {},
-        );
-        let newton = Newton::new(NewtonParams { load_steps: 5, ..Default::default() }).solve(
-            &m,
-            &loads,
-            &mut NoContact,
-            &mut |_| {},
-        );
+        ));
+        let newton = Newton::new(NewtonParams { load_steps: 5, ..Default::default() })
+            .solve(bs_dr::Problem::new(&m, &loads, &mut NoContact, &mut |_| {}));
         (dr, newton)
     });
     let dr = dr.map_err(|e| format!("DR: {e}"))?;

@@ -88,9 +88,11 @@ fn trace(p: &Prepared, a: &Options, scale: f64) -> Result<Traced, String> {
         }
         prev.copy_from_slice(u);
     };
-    let zero = vec![Vector3::zeros(); model.node_count()];
     let dr = DynamicRelaxation::new(params);
-    let result = dr.solve_watched(model, &zero, &c.loads, contact, &mut bs_dr::NoData, &mut watch);
+    let result = dr.solve(bs_dr::Problem {
+        watch: Some(&mut watch),
+        ..bs_dr::Problem::new(model, &c.loads, contact, &mut |_| {})
+    });
     let outcome = match result {
         Ok(s) => format!("converged in {} steps", s.report.steps),
         Err(e) => e.to_string(),
