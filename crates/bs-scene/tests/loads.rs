@@ -236,7 +236,7 @@ fn load_keys_are_checked_at_parse_time() {
             "[[boundary]]\nsphere = { centre = [0.0, 0.0, 0.0], radius = 0.0 }\nfix = [\"x\"]\n",
             "sphere.radius must be positive",
         ),
-        ("space = \"RAI\"\n", "unknown variant `RAI`"),
+        ("space = \"RAI\"\n", "space \"RAI\" is not a frame brainshift knows: use \"RAS\""),
     ];
     for (extra, expect) in cases {
         let text = if extra.starts_with("space") {

@@ -126,7 +126,7 @@ tolerance = 1e-3
             ("model = \"neo-hookean\"", "model = \"ogden\"", "needs alpha"),
             ("algorithm = \"paper\"", "algorithm = \"none\"", "remove the [contact] table"),
             ("algorithm = \"paper\"", "algorithm = \"fast\"", "unknown variant `fast`"),
-            ("space = \"RAS\"", "space = \"ras\"", "unknown variant `ras`"),
+            ("space = \"RAS\"", "space = \"ras\"", "space \"ras\" is not a frame brainshift knows"),
         ];
         for (from, to, expect) in cases {
             let e = Scene::parse(&GOOD.replace(from, to)).unwrap_err();
