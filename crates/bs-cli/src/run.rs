@@ -235,6 +235,7 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
                 .enumerate()
                 .map(|(i, m)| measurement_line(i, m, u_unit) + "\n")
                 .chain(report.gravity.as_ref().and_then(|g| estimate_line(g, u_unit)))
+                .chain(unused_line(&report))
                 .collect::<String>(),
             written.vtu.display(),
             written.vtk.display(),
@@ -258,6 +259,14 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The line saying the measurements were not used and why, unless the estimate's line says
+/// it.
+fn unused_line(report: &bs_scene::output::RunReport) -> Option<String> {
+    let estimated = report.gravity.as_ref().is_some_and(|g| !g.estimates.is_empty());
+    let why = report.data_unused.as_ref().filter(|_| !estimated)?;
+    Some(format!("the measurements were not used: {why}\n"))
 }
 
 /// The line on gravity's estimated parameters (none without `[gravity] estimate`).

@@ -46,7 +46,8 @@
 //! * `loads.rs`: displacements from an intra-operative surface or landmark pairs;
 //! * `measure/`: `[[measurement]]` read and checked at preparation (`read.rs`, landmark
 //!   files in `pairs.rs`), made into bs-fit's terms at composition (`terms.rs`), reported
-//!   after the solve (`outcome.rs`), a pull that cannot be carried explained (`failure.rs`);
+//!   after the solve (`outcome.rs`), a pull that cannot be carried explained (`failure.rs`)
+//!   and answered by the prior (`fallback.rs`);
 //! * `imposed.rs`: an element inverted by imposed data alone, named as such;
 //! * `landmark_fit.rs`: landmarks fitted through the boundary the shift comes from (bs-fit's
 //!   `boundary_fit` composed with the scene's model);

@@ -122,6 +122,11 @@ pub struct RunReport {
     /// without `[gravity]`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gravity: Option<crate::estimate::GravityReport>,
+    /// Why the measurements could not be used, when they could not (absent otherwise): the
+    /// answer is then the prior's, the scene without its data (or at gravity's estimate),
+    /// and `measurements` is empty.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub data_unused: Option<String>,
     /// What a resection removed (absent without one).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub resected: Option<ResectedReport>,
@@ -233,6 +238,7 @@ pub fn report(run: &Run, s: &Solved, ctx: RunContext) -> RunReport {
         space: Some(p.scene.space),
         measurements: s.measurements.clone(),
         gravity: s.gravity.clone(),
+        data_unused: s.data_unused.clone(),
         resected: p.resection.as_ref().map(|r| ResectedReport {
             regions: r.regions.clone(),
             elements: r.elements,

@@ -11,7 +11,7 @@ use crate::SceneError;
 use crate::compose::{Composed, compose};
 use crate::measure::{MeasurementReport, PointRow};
 use crate::prepare::Prepared;
-use crate::solve::{SolveSettings, prepare_solver, solve_composed};
+use crate::solve::{SolveSettings, prepare_solver};
 use crate::verify::{Verification, verify};
 
 /// A scene ready to solve.
@@ -46,6 +46,9 @@ pub struct Solved {
     pub gravity: Option<crate::estimate::GravityReport>,
     /// σ of the fitted answer, when asked for (bs-scene's `uncertainty::sample`).
     pub uncertainty: Option<crate::uncertainty::sigma::Uncertainty>,
+    /// Why the measurements could not be used, when they could not: the answer is then the
+    /// prior's (the scene without them, or at gravity's estimate), verified without them.
+    pub data_unused: Option<String>,
 }
 
 impl Solved {
@@ -74,6 +77,7 @@ impl Solved {
                 ..crate::estimate::GravityReport::of(g)
             }),
             uncertainty: None,
+            data_unused: None,
         }
     }
 }
@@ -94,7 +98,7 @@ impl Run {
     /// Solves and verifies; `observer` sees every step (DR) or iteration (Newton solvers).
     pub fn solve(&mut self, observer: &mut dyn FnMut(&Progress)) -> Result<Solved, SceneError> {
         let started = Instant::now();
-        let mut estimated = None;
+        let (mut estimated, mut unused) = (None, None);
         let (solution, max_penetration_before) = if crate::estimate::estimates(&self.prepared) {
             let (p, c) = (&self.prepared, &mut self.composed);
             let (s, pen, report) = crate::estimate::solve(p, c, &self.settings, observer)?;
@@ -105,10 +109,13 @@ impl Run {
             let (s, pen, _) = crate::landmark_fit::solve(p, c, &self.settings, None, observer)?;
             (s, pen)
         } else {
-            solve_composed(&mut self.composed, &self.settings, observer)
-                .map_err(|e| crate::imposed::explain(self.prepared.imposed(), e))?
+            let (p, c) = (&self.prepared, &mut self.composed);
+            let f = crate::measure::fallback::solve_or_prior(p, c, &self.settings, None, observer)?;
+            unused = f.unused;
+            (f.solution, f.penetration)
         };
-        let kept = crate::estimate::unused_data(&mut self.composed, estimated.as_ref());
+        let unused = unused.or_else(|| crate::estimate::unused_reason(estimated.as_ref()));
+        let kept = crate::estimate::unused_data(&mut self.composed, unused.is_some());
         let verification = verify(
             &self.prepared,
             &self.composed,
@@ -124,6 +131,7 @@ impl Run {
         if estimated.is_some() {
             solved.gravity = estimated;
         }
+        solved.data_unused = unused;
         Ok(solved)
     }
 }

@@ -997,3 +997,56 @@ fn held_out_landmarks_scale_sigma_by_their_misses() {
     }
     assert!(scaled.parts.iter().any(|p| p.contains("5 held-out landmarks")), "{:?}", scaled.parts);
 }
+
+/// A scan the box cannot reach: the plane 10 mm below the box's held bottom, at σ 0.01 mm
+/// with the sliding prior, pulls the top through the bottom and inverts elements (free
+/// sliding lets the top fold around the box instead). The box without the data (nothing
+/// else loads it) is at rest, so the run does not fail: the answer is that prior's,
+/// verified without the data, the report says why (the measurement, the element its pull
+/// inverts and where), and σ is refused (nothing was fitted).
+#[test]
+fn a_pull_that_cannot_be_carried_gives_the_priors_answer_and_says_why() {
+    let dir = tmp("unreachable");
+    std::fs::write(dir.join("scan.csv"), plane_points(-10.0)).unwrap();
+    let path = scene(
+        &dir,
+        "[[measurement]]\npoints = \"scan.csv\"\nnset = \"ZMAX\"\nsigma = 0.01\nmax_distance = 60.0\n",
+    );
+    let mut run = Run::prepare(Prepared::load(&path).unwrap()).unwrap();
+    let solved = run.solve(&mut |_| {}).unwrap();
+    let why = solved.data_unused.clone().expect("the data were not used");
+    let element = why.split("inverts element ").nth(1).and_then(|r| r.split(' ').next());
+    let id: u64 = element.and_then(|e| e.parse().ok()).unwrap_or_else(|| panic!("{why}"));
+    assert!(run.prepared.mesh.element_ids.contains(&id), "{why}");
+    for part in ["the data's pull ([[measurement]] #1", " mm; the answer is the prior's"] {
+        assert!(why.contains(part), "{part}: {why}");
+    }
+    assert!(!why.contains("refine"), "{why}");
+    let largest = solved.solution.displacements.iter().map(|d| d.norm()).fold(0.0, f64::max);
+    assert!(largest < 1e-9, "the prior of an unloaded box is rest: {largest} mm");
+    assert!(solved.measurements.is_empty());
+    let ctx = bs_scene::output::RunContext { total_seconds: 0.0, threads: 1 };
+    let report = bs_scene::output::report(&run, &solved, ctx);
+    let json = serde_json::to_value(&report).unwrap();
+    assert_eq!(json["data_unused"].as_str(), Some(why.as_str()));
+    let params = bs_scene::uncertainty::UncertaintyParams { samples: 8, ..Default::default() };
+    let e = bs_scene::uncertainty::sample(&mut run, &solved, &params).unwrap_err().to_string();
+    assert!(e.contains("--uncertainty: the measurements were not used (the data's pull"), "{e}");
+    // In a session the data terms come back after the prior's answer: a reachable scan
+    // (4 mm down) is then fitted as a cold run of it.
+    let mut session = bs_scene::Session::new(Prepared::load(&path).unwrap()).unwrap();
+    assert!(session.solve(&mut |_| {}).unwrap().data_unused.is_some());
+    let reachable: Vec<Point3<f64>> = bs_mesh::io::points::read_points(&dir.join("scan.csv"))
+        .unwrap()
+        .iter()
+        .map(|p| Point3::new(p.x, p.y, 36.0))
+        .collect();
+    let warm = session.update_points(&[("ZMAX".into(), reachable)], &mut |_| {}).unwrap();
+    assert!(warm.data_unused.is_none() && warm.measurements.len() == 1);
+    std::fs::write(dir.join("scan.csv"), plane_points(36.0)).unwrap();
+    let cold = Run::prepare(Prepared::load(&path).unwrap()).unwrap().solve(&mut |_| {}).unwrap();
+    let worst = (warm.solution.displacements.iter().zip(&cold.solution.displacements))
+        .map(|(a, b)| (a - b).norm())
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-6, "the session's scan against a cold run: {worst} mm");
+}

@@ -193,11 +193,17 @@ pub fn solve(
     Ok((solution, penetration, report))
 }
 
-/// The data terms of `c` when an estimate's answer is the prior's (`g` says the data were
-/// not used): that answer is verified and reported without them; the caller puts them back
-/// with [`restore`] for the next solve.
-pub(crate) fn unused_data(c: &mut Composed, g: Option<&GravityReport>) -> Option<FitState> {
-    g.filter(|g| !g.data_used).and_then(|_| c.fit.take())
+/// Why an estimate's answer is the prior's, when `g` says the data were not used.
+pub(crate) fn unused_reason(g: Option<&GravityReport>) -> Option<String> {
+    g.filter(|g| !g.data_used)
+        .map(|g| g.note.clone().unwrap_or_else(|| "the data were not used at the estimate".into()))
+}
+
+/// The data terms of `c` when the answer is the prior's (`unused`: the data were not used,
+/// by an estimate or a fit that fell back): that answer is verified and reported without
+/// them; the caller puts them back with [`restore`] for the next solve.
+pub(crate) fn unused_data(c: &mut Composed, unused: bool) -> Option<FitState> {
+    if unused { c.fit.take() } else { None }
 }
 
 /// Puts back what [`unused_data`] took.

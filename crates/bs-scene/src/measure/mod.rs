@@ -1,7 +1,8 @@
 //! Intra-operative measurements fitted with the model as the regulariser (`[[measurement]]`):
 //! read and checked at preparation ([`read`]), made into bs-fit's data terms at composition
 //! ([`terms`], the rigid misalignment estimated from bone there), and summarised after the
-//! solve ([`outcome`]: report.json's `measurements`, residuals.csv). The numerics (matching,
+//! solve ([`outcome`]: report.json's `measurements`, residuals.csv); a pull that cannot be
+//! carried is explained ([`failure`]) and falls back to the prior ([`fallback`]). The numerics (matching,
 //! robust weights, the rigid fit) are bs-fit's; this module reads files and names things.
 
 use std::path::PathBuf;
@@ -9,6 +10,7 @@ use std::path::PathBuf;
 use bs_mesh::Point3;
 
 pub(crate) mod failure;
+pub(crate) mod fallback;
 pub(crate) mod outcome;
 pub mod pairs;
 pub(crate) mod read;

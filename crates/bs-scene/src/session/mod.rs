@@ -16,7 +16,6 @@ use crate::boundary::Prescribed;
 use crate::compose::loads_of;
 use crate::prepare::Prepared;
 use crate::run::{Run, Solved};
-use crate::solve::solve_composed_from;
 use crate::verify::verify;
 
 mod apply;
@@ -100,7 +99,7 @@ impl Session {
         // An estimate of gravity's unknowns starts from the scene's gravity each time (the
         // scan is new); when the data cannot be carried the answer is the prior's, verified
         // without the data, and the data terms come back for the next update.
-        let mut estimated = None;
+        let (mut estimated, mut unused) = (None, None);
         let (solution, max_penetration_before) = if crate::estimate::estimates(&run.prepared) {
             let (p, c) = (&run.prepared, &mut run.composed);
             let (s, pen, g) = crate::estimate::solve(p, c, &run.settings, observer)?;
@@ -112,11 +111,14 @@ impl Session {
             let (s, pen, _) = crate::landmark_fit::solve(p, c, &run.settings, warm, observer)?;
             (s, pen)
         } else {
-            solve_composed_from(&mut run.composed, &run.settings, from, observer)
-                .map_err(|e| crate::imposed::explain(run.prepared.imposed(), e))?
+            let (p, c) = (&run.prepared, &mut run.composed);
+            let f = crate::measure::fallback::solve_or_prior(p, c, &run.settings, from, observer)?;
+            unused = f.unused;
+            (f.solution, f.penetration)
         };
         let tolerance = run.settings.tolerance;
-        let kept = crate::estimate::unused_data(&mut run.composed, estimated.as_ref());
+        let unused = unused.or_else(|| crate::estimate::unused_reason(estimated.as_ref()));
+        let kept = crate::estimate::unused_data(&mut run.composed, unused.is_some());
         let verification = verify(&run.prepared, &run.composed, &solution.displacements, tolerance);
         let verification = match verification {
             Ok(v) => v,
@@ -136,6 +138,7 @@ impl Session {
         if estimated.is_some() {
             solved.gravity = estimated;
         }
+        solved.data_unused = unused;
         Ok(solved)
     }
 

@@ -175,7 +175,17 @@ pub fn sample(
     let p = &run.prepared;
     let u = &solved.solution.displacements;
     let gravity = solved.gravity.as_ref();
-    let data_used = gravity.is_none_or(|g| g.data_used);
+    let data_used = solved.data_unused.is_none();
+    if !data_used && gravity.is_none_or(|g| g.theta.is_empty()) {
+        return Err(SceneError::Scene {
+            file: run.prepared.path.clone(),
+            message: format!(
+                "--uncertainty: the measurements were not used ({}), so the answer has no \
+                 fitted uncertainty; run without --uncertainty, or fix the data",
+                solved.data_unused.as_deref().unwrap_or_default()
+            ),
+        });
+    }
     let fit = c.fit.as_ref().filter(|_| data_used);
     let draws = Draws::new(p, &c.model, fit, u, gravity)?;
     let held_out = HeldOut::read(p)?;
