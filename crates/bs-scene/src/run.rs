@@ -99,21 +99,25 @@ impl Run {
     pub fn solve(&mut self, observer: &mut dyn FnMut(&Progress)) -> Result<Solved, SceneError> {
         let started = Instant::now();
         let (mut estimated, mut unused) = (None, None);
-        let (solution, max_penetration_before) = if crate::estimate::estimates(&self.prepared) {
-            let (p, c) = (&self.prepared, &mut self.composed);
-            let (s, pen, report) = crate::estimate::solve(p, c, &self.settings, observer)?;
-            estimated = Some(report);
-            (s, pen)
-        } else if crate::landmark_fit::has_landmarks(&self.prepared) {
-            let (p, c) = (&mut self.prepared, &mut self.composed);
-            let (s, pen, _) = crate::landmark_fit::solve(p, c, &self.settings, None, observer)?;
-            (s, pen)
-        } else {
-            let (p, c) = (&self.prepared, &mut self.composed);
-            let f = crate::measure::fallback::solve_or_prior(p, c, &self.settings, None, observer)?;
-            unused = f.unused;
-            (f.solution, f.penetration)
-        };
+        let (solution, max_penetration_before) =
+            if crate::landmark_fit::has_landmarks(&self.prepared) {
+                let (p, c) = (&mut self.prepared, &mut self.composed);
+                let (s, pen, info) =
+                    crate::landmark_fit::solve(p, c, &self.settings, None, observer)?;
+                estimated = info.gravity;
+                (s, pen)
+            } else if crate::estimate::estimates(&self.prepared) {
+                let (p, c) = (&self.prepared, &mut self.composed);
+                let (s, pen, report) = crate::estimate::solve(p, c, &self.settings, observer)?;
+                estimated = Some(report);
+                (s, pen)
+            } else {
+                let (p, c) = (&self.prepared, &mut self.composed);
+                let f =
+                    crate::measure::fallback::solve_or_prior(p, c, &self.settings, None, observer)?;
+                unused = f.unused;
+                (f.solution, f.penetration)
+            };
         let unused = unused.or_else(|| crate::estimate::unused_reason(estimated.as_ref()));
         let kept = crate::estimate::unused_data(&mut self.composed, unused.is_some());
         let verification = verify(

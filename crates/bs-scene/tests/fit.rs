@@ -1050,3 +1050,57 @@ fn a_pull_that_cannot_be_carried_gives_the_priors_answer_and_says_why() {
         .fold(0.0, f64::max);
     assert!(worst < 1e-6, "the session's scan against a cold run: {worst} mm");
 }
+
+/// Landmarks alone estimate gravity's level with the boundary: the held box under gravity,
+/// its lower half buoyed by a fluid standing at z = 15, its top translated (a field in the
+/// fit's basis); the scene believes the level at z = 25. Fitted through the top with the
+/// level estimated, the answer is the truth's at every node and the level is found; fitted
+/// without the estimate, the boundary alone cannot explain the deep landmarks (the test
+/// fails if the level is not fitted).
+#[test]
+fn landmarks_alone_estimate_the_level_with_the_boundary() {
+    let dir = tmp("landmarks-level");
+    let gravity = |level: f64, estimate: &str| {
+        format!(
+            "[gravity]\ndirection = [0.0, 0.0, -1.0]\nacceleration = 9.81\n\
+             fluid = {{ density = 1007.0, level = [20.0, 20.0, {level:?}] }}\n{estimate}\n"
+        )
+    };
+    let dense = |path: PathBuf| {
+        let text = std::fs::read_to_string(&path)
+            .unwrap()
+            .replace("poisson_ratio = 0.45 }", "poisson_ratio = 0.45, density = 1040.0 }");
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let push = "[[boundary]]\nnset = \"ZMAX\"\ndisplacement = [0.5, 0.0, -1.0]\n";
+    let truth = dense(held_box(&dir, &format!("{push}{}", gravity(15.0, ""))));
+    let mut run = Run::prepare(Prepared::load(&truth).unwrap()).unwrap();
+    let u_truth = run.solve(&mut |_| {}).unwrap().solution.displacements;
+    let mesh = run.prepared.mesh.clone();
+    std::fs::write(dir.join("pairs.csv"), landmark_pairs(&mesh, &u_truth, None)).unwrap();
+    let fit = |estimate: &str| {
+        let m = "[[measurement]]\nlandmarks = \"pairs.csv\"\nnset = \"ZMAX\"\nsigma = 0.005\n";
+        let path = dense(held_box(&dir, &format!("{m}{}", gravity(25.0, estimate))));
+        let mut run = Run::prepare(Prepared::load(&path).unwrap()).unwrap();
+        let solved = run.solve(&mut |_| {}).unwrap();
+        let worst = solved
+            .solution
+            .displacements
+            .iter()
+            .zip(&u_truth)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, f64::max);
+        (worst, solved.gravity.expect("the report's gravity"))
+    };
+    let (without, _) = fit("");
+    let (with, g) = fit("estimate = { level = 15.0 }");
+    let e = &g.estimates[0];
+    assert_eq!(e.name, "level");
+    assert_eq!(g.landmark_inliers, 12, "{g:?}");
+    assert!(e.determined && e.standard_error > 0.0, "{e:?}");
+    // The level 10 mm deeper along gravity; half a millimetre is 5 % of the offset.
+    assert!((e.estimate - 10.0).abs() < 0.5, "{e:?}");
+    assert!(with < 0.03, "largest error {with} mm with the level estimated");
+    assert!(without > 3.0 * with, "without the estimate {without} mm, with {with} mm");
+}

@@ -24,4 +24,6 @@ mod basis;
 mod chord;
 
 pub use basis::{BUMPS, basis, field};
-pub use chord::{ChordFit, ChordParams, Evaluation, chord_fit, discrepancy, step, weights};
+pub use chord::{
+    ChordFit, ChordParams, Evaluation, Priors, chord_fit, covariance, discrepancy, step, weights,
+};

@@ -40,7 +40,8 @@ use crate::measure::FitState;
 use crate::prepare::Prepared;
 use crate::scene::Gravity;
 use crate::solve::{SolveSettings, solve_composed_from};
-use params::{Param, Unknowns};
+use params::Param;
+pub(crate) use params::Unknowns;
 use residuals::{Residuals, residuals};
 
 /// Gauss–Newton iterations at most.
@@ -381,6 +382,20 @@ fn forward(
     warm: Option<&[bs_mesh::Vector3<f64>]>,
     observer: &mut dyn FnMut(&Progress),
 ) -> Result<(Solution, f64), SceneError> {
+    gravity_for(p, c, unknowns, theta)?;
+    let start = warm.map(|s| WarmStart { state: s, secant: None });
+    solve_composed_from(c, settings, start, observer)
+        .map_err(|e| crate::imposed::explain(p.imposed(), e))
+}
+
+/// Makes gravity at `theta` the composition's; a level that leaves the brain is named
+/// with the estimate that put it there.
+pub(crate) fn gravity_for(
+    p: &Prepared,
+    c: &mut Composed,
+    unknowns: &Unknowns,
+    theta: &[f64],
+) -> Result<(), SceneError> {
     let g = unknowns.gravity_at(theta);
     set_gravity(p, c, &g).map_err(|err| match err {
         SceneError::Scene { file, message } if theta.iter().any(|&t| t != 0.0) => {
@@ -393,10 +408,7 @@ fn forward(
             }
         }
         other => other,
-    })?;
-    let start = warm.map(|s| WarmStart { state: s, secant: None });
-    solve_composed_from(c, settings, start, observer)
-        .map_err(|e| crate::imposed::explain(p.imposed(), e))
+    })
 }
 
 /// Makes `g` the composition's gravity.
@@ -433,16 +445,46 @@ fn describe(u: &Unknowns, theta: &[f64]) -> String {
 
 /// report.json's `gravity` of the estimate `e` at gravity `at`.
 fn report(u: &Unknowns, at: &Gravity, e: &Estimated, data_used: bool) -> GravityReport {
+    GravityReport {
+        iterations: e.iterations,
+        solves: e.solves + 1,
+        inliers: e.res.inliers(),
+        landmark_inliers: e.res.landmark_inliers(),
+        data_used,
+        note: e.note.clone(),
+        ..estimated(u, at, &e.theta, &e.cov)
+    }
+}
+
+/// report.json's `gravity` at `at` of the estimate `theta` with posterior covariance `cov`
+/// (its counts zero and no note: the caller's to fill).
+pub(crate) fn estimated(
+    u: &Unknowns,
+    at: &Gravity,
+    theta: &[f64],
+    cov: &DMatrix<f64>,
+) -> GravityReport {
+    GravityReport {
+        estimates: parameter_estimates(u, theta, cov),
+        data_used: true,
+        theta: theta.to_vec(),
+        covariance: (0..cov.nrows()).map(|i| cov.row(i).iter().copied().collect()).collect(),
+        ..GravityReport::of(at)
+    }
+}
+
+/// Each named parameter's estimate, standard error and prior (the two tilts as one angle).
+fn parameter_estimates(u: &Unknowns, theta: &[f64], cov: &DMatrix<f64>) -> Vec<ParameterEstimate> {
     let mut estimates = Vec::new();
-    let sd = |k: usize| e.cov[(k, k)].max(0.0).sqrt();
+    let sd = |k: usize| cov[(k, k)].max(0.0).sqrt();
     let mut k = 0;
     while k < u.params.len() {
         let (estimate, error, prior, width) = match u.params[k] {
-            Param::Level | Param::Weight => (e.theta[k], sd(k), u.prior_sd[k], 1),
+            Param::Level | Param::Weight => (theta[k], sd(k), u.prior_sd[k], 1),
             Param::TiltA | Param::TiltB => {
                 // The angle off the scene's direction; its error the RMS of the two tilts'.
                 let err = (0.5 * (sd(k).powi(2) + sd(k + 1).powi(2))).sqrt();
-                (u.tilt(&e.theta).to_degrees(), err.to_degrees(), u.prior_sd[k].to_degrees(), 2)
+                (u.tilt(theta).to_degrees(), err.to_degrees(), u.prior_sd[k].to_degrees(), 2)
             }
         };
         let name = match u.params[k] {
@@ -459,18 +501,7 @@ fn report(u: &Unknowns, at: &Gravity, e: &Estimated, data_used: bool) -> Gravity
         });
         k += width;
     }
-    GravityReport {
-        estimates,
-        iterations: e.iterations,
-        solves: e.solves + 1,
-        inliers: e.res.inliers(),
-        landmark_inliers: e.res.landmark_inliers(),
-        data_used,
-        note: e.note.clone(),
-        theta: e.theta.clone(),
-        covariance: (0..e.cov.nrows()).map(|i| e.cov.row(i).iter().copied().collect()).collect(),
-        ..GravityReport::of(at)
-    }
+    estimates
 }
 
 /// The nodal dead loads of `p`'s gravity at the estimate of `g` moved by `offset` (in the

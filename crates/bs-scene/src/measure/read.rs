@@ -425,7 +425,8 @@ pub(crate) fn check_frame(
     })
 }
 
-/// The data an `estimate` needs: at least one scan.
+/// The data an `estimate` needs: a scan, or landmarks (beside a scan, or fitted through
+/// their set with gravity's unknowns: crate::landmark_fit).
 pub(crate) fn check_estimate_data(
     e: &crate::scene::Estimate,
     measurements: &[super::Measured],
@@ -436,14 +437,6 @@ pub(crate) fn check_estimate_data(
             "[gravity] estimate ({names}) needs data: without a [[measurement]] nothing tells \
              the parameters from their prior. Add a scan ([[measurement]] points = …) or \
              remove estimate to solve with the scene's values"
-        ));
-    }
-    if !measurements.iter().any(|m| matches!(m.data, super::MeasuredData::Surface { .. })) {
-        return Err(format!(
-            "[gravity] estimate ({names}) is fitted to a scanned surface ([[measurement]] \
-             points = …), with landmarks beside it as further evidence; landmarks alone do \
-             not estimate gravity in this version (their fit imposes the craniotomy's \
-             displacement). Add the scan, or remove estimate"
         ));
     }
     Ok(())

@@ -100,22 +100,26 @@ impl Session {
         // scan is new); when the data cannot be carried the answer is the prior's, verified
         // without the data, and the data terms come back for the next update.
         let (mut estimated, mut unused) = (None, None);
-        let (solution, max_penetration_before) = if crate::estimate::estimates(&run.prepared) {
-            let (p, c) = (&run.prepared, &mut run.composed);
-            let (s, pen, g) = crate::estimate::solve(p, c, &run.settings, observer)?;
-            estimated = Some(g);
-            (s, pen)
-        } else if crate::landmark_fit::has_landmarks(&run.prepared) {
-            let warm = from.map(|w| w.state);
-            let (p, c) = (&mut run.prepared, &mut run.composed);
-            let (s, pen, _) = crate::landmark_fit::solve(p, c, &run.settings, warm, observer)?;
-            (s, pen)
-        } else {
-            let (p, c) = (&run.prepared, &mut run.composed);
-            let f = crate::measure::fallback::solve_or_prior(p, c, &run.settings, from, observer)?;
-            unused = f.unused;
-            (f.solution, f.penetration)
-        };
+        let (solution, max_penetration_before) =
+            if crate::landmark_fit::has_landmarks(&run.prepared) {
+                let warm = from.map(|w| w.state);
+                let (p, c) = (&mut run.prepared, &mut run.composed);
+                let (s, pen, info) =
+                    crate::landmark_fit::solve(p, c, &run.settings, warm, observer)?;
+                estimated = info.gravity;
+                (s, pen)
+            } else if crate::estimate::estimates(&run.prepared) {
+                let (p, c) = (&run.prepared, &mut run.composed);
+                let (s, pen, g) = crate::estimate::solve(p, c, &run.settings, observer)?;
+                estimated = Some(g);
+                (s, pen)
+            } else {
+                let (p, c) = (&run.prepared, &mut run.composed);
+                let f =
+                    crate::measure::fallback::solve_or_prior(p, c, &run.settings, from, observer)?;
+                unused = f.unused;
+                (f.solution, f.penetration)
+            };
         let tolerance = run.settings.tolerance;
         let unused = unused.or_else(|| crate::estimate::unused_reason(estimated.as_ref()));
         let kept = crate::estimate::unused_data(&mut run.composed, unused.is_some());
