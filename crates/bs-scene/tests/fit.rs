@@ -501,6 +501,11 @@ fn landmark_pairs(mesh: &Mesh, u: &[Vector3<f64>], outlier: Option<Vector3<f64>>
     s
 }
 
+/// The largest nodal distance between two displacement fields.
+fn largest_difference(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y).norm()).fold(0.0, f64::max)
+}
+
 /// Landmarks inside the box, made by a solve with the top translated (a field in the fit's
 /// basis), are fitted through the top: the fit recovers the truth's displacement at every
 /// node (to 1 % of the push: the chord steps use the Jacobian of the reference state), and a
@@ -520,13 +525,7 @@ fn landmarks_fitted_through_the_top_recover_the_push_that_moved_them() {
         );
         let mut run = Run::prepare(Prepared::load(&path).unwrap()).unwrap();
         let solved = run.solve(&mut |_| {}).unwrap();
-        let worst = solved
-            .solution
-            .displacements
-            .iter()
-            .zip(&u_truth)
-            .map(|(a, b)| (a - b).norm())
-            .fold(0.0, f64::max);
+        let worst = largest_difference(&solved.solution.displacements, &u_truth);
         assert!(worst < 0.03, "{name}: largest error {worst} mm of a 3.2 mm push");
         let m = &solved.measurements[0];
         assert_eq!(m.kind, bs_scene::measure::MeasurementKind::Landmarks);
@@ -1084,13 +1083,7 @@ fn landmarks_alone_estimate_the_level_with_the_boundary() {
         let path = dense(held_box(&dir, &format!("{m}{}", gravity(25.0, estimate))));
         let mut run = Run::prepare(Prepared::load(&path).unwrap()).unwrap();
         let solved = run.solve(&mut |_| {}).unwrap();
-        let worst = solved
-            .solution
-            .displacements
-            .iter()
-            .zip(&u_truth)
-            .map(|(a, b)| (a - b).norm())
-            .fold(0.0, f64::max);
+        let worst = largest_difference(&solved.solution.displacements, &u_truth);
         (worst, solved.gravity.expect("the report's gravity"))
     };
     let (without, _) = fit("");
