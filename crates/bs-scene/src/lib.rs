@@ -47,10 +47,12 @@
 //! * `measure/`: `[[measurement]]` read and checked at preparation (`read.rs`, landmark
 //!   files in `pairs.rs`), made into bs-fit's terms at composition (`terms.rs`), reported
 //!   after the solve (`outcome.rs`), a pull that cannot be carried explained (`failure.rs`)
-//!   and answered by the prior (`fallback.rs`);
+//!   and answered by the prior (`fallback.rs`), and which fit a scene asks for, for runs
+//!   and sessions alike (`dispatch.rs`);
 //! * `imposed.rs`: an element inverted by imposed data alone, named as such;
 //! * `landmark_fit.rs`: landmarks fitted through the boundary the shift comes from (bs-fit's
-//!   `boundary_fit` composed with the scene's model);
+//!   `boundary_fit` composed with the scene's model; with `[gravity] estimate`, jointly
+//!   with gravity's unknowns);
 //! * `estimate/`: `[gravity] estimate`'s unknowns from a scan: `mod.rs` (probes, Broyden,
 //!   line search), `params.rs` (the unknowns), `residuals.rs`, `gauss_newton.rs`;
 //! * `uncertainty/`: `mod.rs` (the sampling), `draws.rs` (one sample's change),

@@ -9,6 +9,7 @@ use bs_dr::{Progress, Solution};
 
 use crate::SceneError;
 use crate::compose::{Composed, compose};
+use crate::measure::dispatch::solve_measured;
 use crate::measure::{MeasurementReport, PointRow};
 use crate::prepare::Prepared;
 use crate::solve::{SolveSettings, prepare_solver};
@@ -98,27 +99,10 @@ impl Run {
     /// Solves and verifies; `observer` sees every step (DR) or iteration (Newton solvers).
     pub fn solve(&mut self, observer: &mut dyn FnMut(&Progress)) -> Result<Solved, SceneError> {
         let started = Instant::now();
-        let (mut estimated, mut unused) = (None, None);
-        let (solution, max_penetration_before) =
-            if crate::landmark_fit::has_landmarks(&self.prepared) {
-                let (p, c) = (&mut self.prepared, &mut self.composed);
-                let (s, pen, info) =
-                    crate::landmark_fit::solve(p, c, &self.settings, None, observer)?;
-                estimated = info.gravity;
-                (s, pen)
-            } else if crate::estimate::estimates(&self.prepared) {
-                let (p, c) = (&self.prepared, &mut self.composed);
-                let (s, pen, report) = crate::estimate::solve(p, c, &self.settings, observer)?;
-                estimated = Some(report);
-                (s, pen)
-            } else {
-                let (p, c) = (&self.prepared, &mut self.composed);
-                let f =
-                    crate::measure::fallback::solve_or_prior(p, c, &self.settings, None, observer)?;
-                unused = f.unused;
-                (f.solution, f.penetration)
-            };
-        let unused = unused.or_else(|| crate::estimate::unused_reason(estimated.as_ref()));
+        let (p, c) = (&mut self.prepared, &mut self.composed);
+        let answer = solve_measured(p, c, &self.settings, None, observer)?;
+        let (solution, max_penetration_before) = (answer.solution, answer.penetration);
+        let (estimated, unused) = (answer.gravity, answer.unused);
         let kept = crate::estimate::unused_data(&mut self.composed, unused.is_some());
         let verification = verify(
             &self.prepared,

@@ -9,6 +9,7 @@ use std::path::PathBuf;
 
 use bs_mesh::Point3;
 
+pub(crate) mod dispatch;
 pub(crate) mod failure;
 pub(crate) mod fallback;
 pub(crate) mod outcome;

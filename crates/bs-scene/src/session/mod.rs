@@ -14,6 +14,7 @@ use bs_mesh::Vector3;
 use crate::SceneError;
 use crate::boundary::Prescribed;
 use crate::compose::loads_of;
+use crate::measure::dispatch::solve_measured;
 use crate::prepare::Prepared;
 use crate::run::{Run, Solved};
 use crate::verify::verify;
@@ -99,29 +100,11 @@ impl Session {
         // An estimate of gravity's unknowns starts from the scene's gravity each time (the
         // scan is new); when the data cannot be carried the answer is the prior's, verified
         // without the data, and the data terms come back for the next update.
-        let (mut estimated, mut unused) = (None, None);
-        let (solution, max_penetration_before) =
-            if crate::landmark_fit::has_landmarks(&run.prepared) {
-                let warm = from.map(|w| w.state);
-                let (p, c) = (&mut run.prepared, &mut run.composed);
-                let (s, pen, info) =
-                    crate::landmark_fit::solve(p, c, &run.settings, warm, observer)?;
-                estimated = info.gravity;
-                (s, pen)
-            } else if crate::estimate::estimates(&run.prepared) {
-                let (p, c) = (&run.prepared, &mut run.composed);
-                let (s, pen, g) = crate::estimate::solve(p, c, &run.settings, observer)?;
-                estimated = Some(g);
-                (s, pen)
-            } else {
-                let (p, c) = (&run.prepared, &mut run.composed);
-                let f =
-                    crate::measure::fallback::solve_or_prior(p, c, &run.settings, from, observer)?;
-                unused = f.unused;
-                (f.solution, f.penetration)
-            };
+        let (p, c) = (&mut run.prepared, &mut run.composed);
+        let answer = solve_measured(p, c, &run.settings, from, observer)?;
+        let (solution, max_penetration_before) = (answer.solution, answer.penetration);
+        let (estimated, unused) = (answer.gravity, answer.unused);
         let tolerance = run.settings.tolerance;
-        let unused = unused.or_else(|| crate::estimate::unused_reason(estimated.as_ref()));
         let kept = crate::estimate::unused_data(&mut run.composed, unused.is_some());
         let verification = verify(&run.prepared, &run.composed, &solution.displacements, tolerance);
         let verification = match verification {
