@@ -276,13 +276,13 @@ fn estimate_line(g: &bs_scene::estimate::GravityReport, u_unit: &str) -> Option<
     }
     let data = if g.data_used { "" } else { "; the data were not used" };
     let note = g.note.as_ref().map_or(String::new(), |n| format!(" ({n})"));
-    let landmarks = match g.landmark_inliers {
-        0 => String::new(),
-        n => format!(" and {n} landmarks"),
+    let from = match (g.inliers, g.landmark_inliers) {
+        (n, 0) => format!("{n} scan points"),
+        (0, l) => format!("{l} landmarks"),
+        (n, l) => format!("{n} scan points and {l} landmarks"),
     };
     Some(format!(
-        "gravity estimated from {} scan points{landmarks} in {} Gauss-Newton iterations ({} solves): {}{data}{note}\n",
-        g.inliers,
+        "gravity estimated from {from} in {} Gauss-Newton iterations ({} solves): {}{data}{note}\n",
         g.iterations,
         g.solves,
         g.summary(u_unit)
@@ -334,7 +334,7 @@ pub fn measurement_line(i: usize, m: &bs_scene::measure::MeasurementReport, u: &
     });
     if m.kind == bs_scene::measure::MeasurementKind::Landmarks {
         let through = match m.nset.as_str() {
-            "" => "beside the scan (gravity's evidence)".to_string(),
+            "" => "as evidence for gravity's unknowns".to_string(),
             set => format!("through {set}"),
         };
         return format!(
@@ -381,4 +381,36 @@ pub fn measurement_line(i: usize, m: &bs_scene::measure::MeasurementReport, u: &
 /// The bundled default scene (the real-anatomy fixture) for `demo` and a bare `run`.
 pub fn default_scene() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/mni152/scene.toml")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The estimate's line names the data it came from: scan points, landmarks, or both.
+    #[test]
+    fn the_estimate_line_names_the_data_it_came_from() {
+        let mut g = bs_scene::estimate::GravityReport::of(&bs_scene::scene::Gravity {
+            direction: [0.0, 0.0, -1.0],
+            acceleration: 9.81,
+            fluid: None,
+            estimate: None,
+        });
+        assert_eq!(estimate_line(&g, "mm"), None);
+        g.estimates.push(bs_scene::estimate::ParameterEstimate {
+            name: "level".into(),
+            estimate: 9.6,
+            standard_error: 0.4,
+            prior: 15.0,
+            determined: true,
+        });
+        let line = |g: &bs_scene::estimate::GravityReport| estimate_line(g, "mm").unwrap();
+        (g.inliers, g.landmark_inliers) = (591, 0);
+        assert!(line(&g).starts_with("gravity estimated from 591 scan points in "), "{}", line(&g));
+        (g.inliers, g.landmark_inliers) = (0, 15);
+        assert!(line(&g).starts_with("gravity estimated from 15 landmarks in "), "{}", line(&g));
+        (g.inliers, g.landmark_inliers) = (591, 15);
+        assert!(line(&g).contains("from 591 scan points and 15 landmarks in "), "{}", line(&g));
+        assert!(line(&g).contains("level 9.60 ± 0.40 mm"), "{}", line(&g));
+    }
 }

@@ -781,65 +781,109 @@ fn a_bad_estimate_is_refused_naming_its_key() {
     assert!(m.contains("names nothing"), "{m}");
 }
 
-/// Landmarks beside a scan are evidence for the level: the column's top scanned and
-/// landmarks inside it at their closed-form displacements, the level estimated from both.
-/// The least-squares information of the level is the sum of the scan's and the landmarks'
-/// (each landmark's axial miss moves by the closed form's sensitivity at its height; its
-/// lateral misses do not move), so the standard error is the closed form's of that sum.
-#[test]
-fn landmarks_beside_the_scan_add_their_closed_form_information_to_the_level() {
+/// The column's closed-form displacement (mm, up) at heights `z` with the fluid below
+/// `level`, its height and its law those of [`column_scene`].
+fn column_at(level: f64, z: &[f64]) -> Vec<f64> {
     use bs_material::closed_form::confined_column_displacement;
-    let dir = tmp("column-landmarks");
-    let height = 80.0;
     let law = bs_material::Material::neo_hookean(3000.0, 0.45).unwrap();
-    let at = |level: f64, z: &[f64]| {
-        let (w, wf) = (1040.0 * 9.81e-3, 1007.0 * 9.81e-3);
-        let weight = move |h: f64| if h < level { w - wf } else { w };
-        confined_column_displacement(&law, height, &weight, 0.0, z).unwrap()
-    };
-    let scan_z = height + at(30.0, &[height])[0];
-    // Forty landmarks 4–74 mm up the column, away from its sides.
+    let (w, wf) = (1040.0 * 9.81e-3, 1007.0 * 9.81e-3);
+    let weight = move |h: f64| if h < level { w - wf } else { w };
+    confined_column_displacement(&law, 80.0, &weight, 0.0, z).unwrap()
+}
+
+/// The closed form's sensitivity to the level (mm per mm) at heights `z`, about z = 30.
+fn column_sensitivity(z: &[f64]) -> Vec<f64> {
+    column_at(31.0, z).iter().zip(column_at(29.0, z)).map(|(a, b)| (a - b) / 2.0).collect()
+}
+
+/// The column of [`column_scene`] believing the level at z = 40 (the truth's at 30),
+/// estimated with forty landmarks 4–74 mm up it at their closed-form displacements
+/// (σ 0.03) and, with `scan`, its top scanned (σ 0.1); solved.
+fn column_with_landmarks(dir: &Path, scan: bool) -> bs_scene::Solved {
+    let scan_z = 80.0 + column_at(30.0, &[80.0])[0];
     let heights: Vec<f64> = (0..40).map(|k| 4.0 + 1.8 * k as f64).collect();
-    let u = at(30.0, &heights);
+    let u = column_at(30.0, &heights);
     let mut pairs = String::from("x,y,z,x2,y2,z2\n");
     for (k, (z, dz)) in heights.iter().zip(&u).enumerate() {
         let (x, y) = (5.0 + 5.0 * (k % 3) as f64, 5.0 + 5.0 * ((k / 3) % 3) as f64);
         pairs += &format!("{x},{y},{z},{x},{y},{}\n", z + dz);
     }
     std::fs::write(dir.join("pairs.csv"), pairs).unwrap();
-    let path = column_scene(&dir, 40.0, 9.81, "estimate = { level = 15.0 }", scan_z);
-    let text = std::fs::read_to_string(&path)
-        .unwrap()
+    let path = column_scene(dir, 40.0, 9.81, "estimate = { level = 15.0 }", scan_z);
+    let mut text = std::fs::read_to_string(&path).unwrap();
+    if !scan {
+        let cut = text.find("[[measurement]]").unwrap();
+        let end = text.find("[solver]").unwrap();
+        text.replace_range(cut..end, "");
+    }
+    let text = text
         .replace("[solver]", "[[measurement]]\nlandmarks = \"pairs.csv\"\nsigma = 0.03\n[solver]");
     std::fs::write(&path, text).unwrap();
     let mut run = Run::prepare(Prepared::load(&path).unwrap()).unwrap();
-    let solved = run.solve(&mut |_| {}).unwrap();
+    run.solve(&mut |_| {}).unwrap()
+}
+
+/// The level found by `g` is within three times the model's settlement error over the
+/// top's sensitivity of the truth's (as the scan alone: the_estimated_level_and_weight_…).
+fn assert_column_level(g: &bs_scene::estimate::GravityReport) {
+    let per_mm = column_sensitivity(&[80.0])[0].abs();
+    let found = 40.0 - g.estimates[0].estimate;
+    let bound = 3.0 * 0.005 * -column_at(30.0, &[80.0])[0] / per_mm;
+    assert!((found - 30.0).abs() < bound, "level {found} against 30 (bound {bound})");
+}
+
+/// The least-squares information of the level from the forty landmarks of
+/// [`column_with_landmarks`]: each landmark's axial miss moves by the closed form's
+/// sensitivity at its height; its lateral misses do not move.
+fn landmark_information() -> f64 {
+    let heights: Vec<f64> = (0..40).map(|k| 4.0 + 1.8 * k as f64).collect();
+    column_sensitivity(&heights).iter().map(|s| s * s).sum::<f64>() / 0.0009
+}
+
+/// Landmarks beside a scan are evidence for the level: the column's top scanned and
+/// landmarks inside it at their closed-form displacements, the level estimated from both.
+/// The least-squares information of the level is the sum of the scan's and the landmarks',
+/// so the standard error is the closed form's of that sum.
+#[test]
+fn landmarks_beside_the_scan_add_their_closed_form_information_to_the_level() {
+    let solved = column_with_landmarks(&tmp("column-landmarks"), true);
     let g = solved.gravity.expect("the report's gravity");
     assert!(g.data_used && g.note.is_none(), "{g:?}");
     assert_eq!(g.landmark_inliers, 40, "{g:?}");
-    let e = &g.estimates[0];
-    // The level within three times the model's settlement error over the top's
-    // sensitivity, as the scan alone (the_estimated_level_and_weight_…).
-    let sensitivity = |z: &[f64]| -> Vec<f64> {
-        at(31.0, z).iter().zip(at(29.0, z)).map(|(a, b)| (a - b) / 2.0).collect()
-    };
-    let per_mm = sensitivity(&[height])[0].abs();
-    let found = 40.0 - e.estimate;
-    let bound = 3.0 * 0.005 * -at(30.0, &[height])[0] / per_mm;
-    assert!((found - 30.0).abs() < bound, "level {found} against 30 (bound {bound})");
-    let landmarks: f64 = sensitivity(&heights).iter().map(|s| s * s).sum();
+    assert_column_level(&g);
+    let per_mm = column_sensitivity(&[80.0])[0].abs();
     // The scan's noise 0.1 mm, the landmarks' 0.03 (so that they matter beside the scan's
     // hundreds of points).
-    let information = g.inliers as f64 * per_mm * per_mm / 0.01 + landmarks / 0.0009 + 1.0 / 225.0;
-    let expected = 1.0 / information.sqrt();
-    let scan_only = 1.0 / (g.inliers as f64 * per_mm * per_mm / 0.01 + 1.0 / 225.0).sqrt();
+    let scan = g.inliers as f64 * per_mm * per_mm / 0.01;
+    let expected = 1.0 / (scan + landmark_information() + 1.0 / 225.0).sqrt();
+    let scan_only = 1.0 / (scan + 1.0 / 225.0).sqrt();
     assert!(expected < 0.9 * scan_only, "the landmarks must matter: {expected} {scan_only}");
+    let e = &g.estimates[0];
     assert!(
         (e.standard_error / expected - 1.0).abs() < 0.2,
         "{e:?}: expected {expected} (scan alone {scan_only})"
     );
     // The landmarks are reported as measured, not pulled (the scan pulls).
     let m = &solved.measurements[1];
+    assert_eq!((m.kind, m.nset.as_str()), (bs_scene::measure::MeasurementKind::Landmarks, ""));
+    assert!(m.max_residual < 0.1, "{m:?}");
+}
+
+/// Landmarks alone, through no set, are evidence for the level: nothing is prescribed, the
+/// level is the closed form's and its standard error the landmarks' information alone; the
+/// answer is the model at the estimate, the landmarks on it within their noise.
+#[test]
+fn landmarks_alone_without_a_set_estimate_the_level_with_their_closed_form_information() {
+    let solved = column_with_landmarks(&tmp("column-landmarks-alone"), false);
+    let g = solved.gravity.expect("the report's gravity");
+    assert!(g.data_used && g.note.is_none(), "{g:?}");
+    assert_eq!((g.inliers, g.landmark_inliers), (0, 40), "{g:?}");
+    assert_column_level(&g);
+    let expected = 1.0 / (landmark_information() + 1.0 / 225.0).sqrt();
+    let e = &g.estimates[0];
+    assert!(e.determined, "{e:?}");
+    assert!((e.standard_error / expected - 1.0).abs() < 0.2, "{e:?}: expected {expected}");
+    let m = &solved.measurements[0];
     assert_eq!((m.kind, m.nset.as_str()), (bs_scene::measure::MeasurementKind::Landmarks, ""));
     assert!(m.max_residual < 0.1, "{m:?}");
 }

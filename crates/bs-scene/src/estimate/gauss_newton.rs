@@ -33,9 +33,49 @@ pub(crate) fn step(
     (chol.solve(&rhs), chol.inverse())
 }
 
+/// Broyden's update of `j` along the step `s` that changed the residuals by `y` beyond
+/// what `j` predicted (`y = Δr − J s`), in the prior's units: the least change of `J S`
+/// (`S` the prior standard deviations) that makes `J s` equal `Δr`. Unscaled, a step of a
+/// few hundredths of a radian beside one of a few hundredths of a millimetre puts the
+/// whole change on the parameter whose unit is smallest.
+pub(crate) fn broyden(j: &mut DMatrix<f64>, y: &DVector<f64>, s: &DVector<f64>, sd: &[f64]) {
+    let scaled = DVector::from_iterator(s.len(), s.iter().zip(sd).map(|(s, d)| s / (d * d)));
+    let norm = s.dot(&scaled);
+    if norm > 0.0 {
+        *j += y * scaled.transpose() / norm;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The update meets the secant condition, and it does not depend on the parameters'
+    /// units: a parameter measured in units a thousand times smaller (its prior too) gets
+    /// the same column, a thousand times larger.
+    #[test]
+    fn broydens_update_meets_the_secant_condition_whatever_the_units() {
+        let j = DMatrix::from_row_slice(3, 2, &[1.0, 2.0, 0.5, -1.0, 0.0, 3.0]);
+        let truth = DMatrix::from_row_slice(3, 2, &[1.5, 2.0, 0.2, -0.5, 1.0, 2.0]);
+        let s = DVector::from_vec(vec![0.3, -0.2]);
+        let y = &truth * &s - &j * &s;
+        let mut a = j.clone();
+        broyden(&mut a, &y, &s, &[1.0, 1.0]);
+        assert!((&a * &s - &truth * &s).norm() < 1e-12);
+        // The second parameter in units 1000× smaller: θ₂' = θ₂ / 1000, σ₂' = σ₂ / 1000.
+        let c = 1000.0;
+        let mut b = j.clone();
+        b.column_mut(1).scale_mut(c);
+        let s2 = DVector::from_vec(vec![0.3, -0.2 / c]);
+        broyden(&mut b, &y, &s2, &[1.0, 1.0 / c]);
+        assert!((b.column(0) - a.column(0)).norm() < 1e-9, "{b} {a}");
+        assert!((b.column(1) / c - a.column(1)).norm() < 1e-9, "{b} {a}");
+        // Unscaled (equal priors) the small unit's column would take almost none of it.
+        let mut u = j.clone();
+        u.column_mut(1).scale_mut(c);
+        broyden(&mut u, &y, &s2, &[1.0, 1.0]);
+        assert!((u.column(0) - a.column(0)).norm() > 0.1);
+    }
 
     /// On a linear model one step from anywhere lands on the closed-form minimiser, and the
     /// covariance is the inverse normal matrix; with a vanishing prior, least squares.

@@ -17,7 +17,8 @@
 //!    parameter warm from the current answer (a small load change: a few Newton
 //!    iterations); the step is halved until the objective falls;
 //! 3. the scan then pulls the model at the estimated gravity, warm from its forward answer
-//!    (the measurement fit of docs/fit.md).
+//!    (the measurement fit of docs/fit.md). Landmarks alone (no scan, no set) only measure:
+//!    the answer is the model at the estimate.
 //!
 //! The posterior covariance `(JᵀWJ + P)⁻¹` gives each estimate's standard error; it
 //! treats the points as independent, so it is a lower bound where the model's own error
@@ -171,7 +172,7 @@ pub fn solve(
 ) -> Result<(Solution, f64, GravityReport), SceneError> {
     let gravity = p.scene.gravity.clone().expect("estimates(p)");
     let unknowns = Unknowns::new(&gravity, &gravity.estimate.expect("estimates(p)"));
-    let mut fit = c.fit.take().expect("an estimate has a scan (check_data)");
+    let mut fit = c.fit.take().expect("an estimate has data (check_estimate_data)");
     let estimated = estimate(p, c, settings, &unknowns, &mut fit.fits, observer);
     c.fit = Some(fit);
     let mut e = estimated?;
@@ -266,7 +267,7 @@ fn estimate(
             }
         }
         let change = &e.res.r - &r - &j * &step;
-        j += change * step.transpose() / step.norm_squared().max(f64::MIN_POSITIVE);
+        gauss_newton::broyden(&mut j, &change, &step, sd);
     }
     // The covariance at the answer, with its weights.
     e.cov = gauss_newton::step(&j, &e.res.r, &weights(&e, &valid), &e.theta, sd).1;

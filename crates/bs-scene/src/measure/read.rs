@@ -33,9 +33,10 @@ pub(crate) fn read_measurements(
         .collect()
 }
 
-/// Landmarks fitted alone go through their node set; beside a scan they are evidence for
-/// gravity's unknowns (the scan pulls the boundary), so they need `[gravity] estimate` and
-/// name no set. Two landmark measurements are one: their files are merged.
+/// Landmarks fitted alone go through their node set; beside a scan, or alone without a set,
+/// they are evidence for gravity's unknowns (a scan pulls the boundary; alone, the answer
+/// is the model at the estimate), so they need `[gravity] estimate`. Two landmark
+/// measurements are one: their files are merged.
 fn check_combination(sp: &Path, scene: &Scene) -> Result<(), SceneError> {
     let err = |i: usize, key: &str, message: &str| SceneError::Read {
         scene: sp.to_path_buf(),
@@ -57,12 +58,15 @@ fn check_combination(sp: &Path, scene: &Scene) -> Result<(), SceneError> {
     let m = &scene.measurements[i];
     let estimates = scene.gravity.as_ref().is_some_and(|g| g.estimate.is_some());
     match (scans, &m.nset) {
-        (0, None) => Err(err(
+        (0, None) if !estimates => Err(err(
             i,
             "nset",
             "landmarks fitted alone need nset: the boundary nodes the shift comes through \
-             (e.g. nset = \"CRANIOTOMY\"); the fit finds their displacement",
+             (e.g. nset = \"CRANIOTOMY\"); the fit finds their displacement. Or, with \
+             [gravity] estimate = { level = … }, landmarks without nset are evidence for \
+             gravity's unknowns and nothing is prescribed",
         )),
+        (0, None) => Ok(()),
         (0, Some(_)) => Ok(()),
         (_, Some(_)) => Err(err(
             i,
@@ -425,8 +429,8 @@ pub(crate) fn check_frame(
     })
 }
 
-/// The data an `estimate` needs: a scan, or landmarks (beside a scan, or fitted through
-/// their set with gravity's unknowns: crate::landmark_fit).
+/// The data an `estimate` needs: a scan, or landmarks (beside a scan, alone as evidence,
+/// or fitted through their set with gravity's unknowns: crate::landmark_fit).
 pub(crate) fn check_estimate_data(
     e: &crate::scene::Estimate,
     measurements: &[super::Measured],

@@ -10,7 +10,9 @@
 //! a row says so, a scene whose level is 10 mm above the truth's and whose direction is 4°
 //! off it. The landmark rows take [`LANDMARKS`] pairs 5–25 mm under the craniotomy at σ
 //! 1 mm (the push study's draws): fitted through the craniotomy and imposed by the spline
-//! under the scene's (off) gravity, and beside the scan as evidence for the estimate.
+//! under the scene's (off) gravity, fitted through the craniotomy with the level and direction
+//! estimated jointly with the boundary, alone as evidence for the estimate (nothing
+//! prescribed), and beside the scan as evidence for the estimate.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -216,6 +218,14 @@ fn scenes(
             with(&scan, scene_table(load, c, true, Some(&estimate_w))),
         ),
         ("landmarks, gravity off", with(&model, format!("{fitted}\n{off}"))),
+        (
+            "landmarks through the craniotomy, level and direction estimated",
+            with(&model, format!("{fitted}\n{}", scene_table(load, c, true, Some(&estimate)))),
+        ),
+        (
+            "landmarks as evidence only, level and direction estimated",
+            with(&model, format!("{beside}\n{}", scene_table(load, c, true, Some(&estimate)))),
+        ),
         ("spline of the landmarks, gravity off", with(&model, format!("{spline}\n{off}"))),
         (
             "scan and landmarks, level and direction estimated",
