@@ -796,12 +796,17 @@ fn column_sensitivity(z: &[f64]) -> Vec<f64> {
     column_at(31.0, z).iter().zip(column_at(29.0, z)).map(|(a, b)| (a - b) / 2.0).collect()
 }
 
+/// The heights of the forty landmarks of [`column_with_landmarks`]: 4–74 mm up the column.
+fn column_landmark_heights() -> Vec<f64> {
+    (0..40).map(|k| 4.0 + 1.8 * k as f64).collect()
+}
+
 /// The column of [`column_scene`] believing the level at z = 40 (the truth's at 30),
 /// estimated with forty landmarks 4–74 mm up it at their closed-form displacements
 /// (σ 0.03) and, with `scan`, its top scanned (σ 0.1); solved.
 fn column_with_landmarks(dir: &Path, scan: bool) -> bs_scene::Solved {
     let scan_z = 80.0 + column_at(30.0, &[80.0])[0];
-    let heights: Vec<f64> = (0..40).map(|k| 4.0 + 1.8 * k as f64).collect();
+    let heights = column_landmark_heights();
     let u = column_at(30.0, &heights);
     let mut pairs = String::from("x,y,z,x2,y2,z2\n");
     for (k, (z, dz)) in heights.iter().zip(&u).enumerate() {
@@ -836,7 +841,7 @@ fn assert_column_level(g: &bs_scene::estimate::GravityReport) {
 /// [`column_with_landmarks`]: each landmark's axial miss moves by the closed form's
 /// sensitivity at its height; its lateral misses do not move.
 fn landmark_information() -> f64 {
-    let heights: Vec<f64> = (0..40).map(|k| 4.0 + 1.8 * k as f64).collect();
+    let heights = column_landmark_heights();
     column_sensitivity(&heights).iter().map(|s| s * s).sum::<f64>() / 0.0009
 }
 
