@@ -44,6 +44,20 @@ pub fn axpy(alpha: f64, x: &[Vector3<f64>], y: &mut [Vector3<f64>]) {
     y.par_iter_mut().zip(x.par_iter()).with_min_len(CHUNK).for_each(|(b, a)| *b += a * alpha);
 }
 
+/// `K` vectors of one length cut into tasks of `rows` entries: task `i` holds entries
+/// `i·rows..(i+1)·rows` of each (for a parallel pass that writes all of them).
+pub(crate) fn batch_chunks<T, const K: usize>(
+    out: [&mut [T]; K],
+    rows: usize,
+) -> Vec<[&mut [T]; K]> {
+    let len = out.first().map_or(0, |o| o.len());
+    debug_assert!(out.iter().all(|o| o.len() == len));
+    let mut chunks: [_; K] = out.map(|o| o.chunks_mut(rows));
+    (0..len.div_ceil(rows))
+        .map(|_| std::array::from_fn(|j| chunks[j].next().expect("K vectors of one length")))
+        .collect()
+}
+
 /// `data` cut into the rows of the offsets `ptr` (disjoint mutable slices).
 pub(crate) fn split_rows<'a, T>(ptr: &[u32], data: &'a mut [T]) -> Vec<&'a mut [T]> {
     let mut rest = data;

@@ -14,9 +14,10 @@ use rayon::prelude::*;
 use super::blocks::Blocks;
 use super::constraints::Constraints;
 use super::levels::{Level, Levels};
-use super::operator::OperatorScratch;
+use super::operator::{BatchScratch, OperatorScratch};
 use super::projector::Projector;
 use super::setup::Multilevel;
+use crate::linalg::sparse::batch_chunks;
 
 /// Nodes per rayon task in the mesh level's passes: few enough tasks that the fork-join
 /// overhead stays small next to the work of a pass.
@@ -51,26 +52,88 @@ impl std::fmt::Debug for MultilevelScratch {
     }
 }
 
+/// Caller-owned buffers of [`Multilevel::apply_batch`]: the cycle's vectors of each of the
+/// `K` right-hand sides, and the batch product's.
+pub struct MultilevelBatchScratch<const K: usize> {
+    r: [Vec<Vector3<f64>>; K],
+    d: [Vec<Vector3<f64>>; K],
+    t: [Vec<Vector3<f64>>; K],
+    e: [Vec<Vector3<f64>>; K],
+    k: BatchScratch<K>,
+    /// Per coarse level, per vector: right-hand side, solution, residual and two Chebyshev
+    /// vectors.
+    levels: Vec<[[Vec<V6>; 5]; K]>,
+    /// The coarsest level's `K` right-hand sides, column after column.
+    coarsest: Vec<f64>,
+    mem: MemBuffer,
+}
+
+impl<const K: usize> std::fmt::Debug for MultilevelBatchScratch<K> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MultilevelBatchScratch")
+            .field("vectors", &K)
+            .field("nodes", &self.r[0].len())
+            .finish_non_exhaustive()
+    }
+}
+
 impl Multilevel {
-    /// Scratch buffers for [`apply`](Self::apply).
-    pub fn scratch(&self) -> MultilevelScratch {
+    /// Unknowns (in nodes) of each coarse level, the first one first.
+    fn coarse_sizes(&self) -> Vec<usize> {
         let st = &self.structure;
-        let n = st.p32.rows();
         let mut sizes = vec![st.pt32.rows()];
         sizes.extend(st.coarse.links.iter().map(|l| l.pt.rows()));
-        let levels = sizes.iter().map(|&m| std::array::from_fn(|_| vec![V6::zeros(); m])).collect();
-        let coarsest = 6 * sizes.last().copied().unwrap_or(0);
+        sizes
+    }
+
+    /// Per coarse level the five vectors of its cycle.
+    fn coarse_vectors(&self) -> Vec<[Vec<V6>; 5]> {
+        let sizes = self.coarse_sizes();
+        sizes.iter().map(|&m| std::array::from_fn(|_| vec![V6::zeros(); m])).collect()
+    }
+
+    /// The coarsest solve's buffers for `k` right-hand sides.
+    fn coarsest_buffers(&self, k: usize) -> (Vec<f64>, MemBuffer) {
+        let coarsest = 6 * self.coarse_sizes().last().copied().unwrap_or(0);
+        let need = self.levels.levels.symbolic.solve_in_place_scratch::<f64>(k, Par::Seq);
+        (vec![0.0; k * coarsest], MemBuffer::new(need))
+    }
+
+    /// Scratch buffers for [`apply`](Self::apply).
+    pub fn scratch(&self) -> MultilevelScratch {
+        let n = self.structure.p32.rows();
+        let (coarsest, mem) = self.coarsest_buffers(1);
         MultilevelScratch {
             r: vec![Vector3::zeros(); n],
             d: vec![Vector3::zeros(); n],
             t: vec![Vector3::zeros(); n],
             e: vec![Vector3::zeros(); n],
             k: self.op32.scratch(),
+            levels: self.coarse_vectors(),
+            coarsest,
+            mem,
+        }
+    }
+
+    /// Scratch buffers for [`apply_batch`](Self::apply_batch) of `K` vectors.
+    pub fn batch_scratch<const K: usize>(&self) -> MultilevelBatchScratch<K> {
+        let n = self.structure.p32.rows();
+        let vectors = || std::array::from_fn(|_| vec![Vector3::zeros(); n]);
+        let (coarsest, mem) = self.coarsest_buffers(K);
+        let sizes = self.coarse_sizes();
+        let levels = sizes
+            .iter()
+            .map(|&m| std::array::from_fn(|_| std::array::from_fn(|_| vec![V6::zeros(); m])))
+            .collect();
+        MultilevelBatchScratch {
+            r: vectors(),
+            d: vectors(),
+            t: vectors(),
+            e: vectors(),
+            k: self.op32.batch_scratch(),
             levels,
-            coarsest: vec![0.0; coarsest],
-            mem: MemBuffer::new(
-                self.levels.levels.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
-            ),
+            coarsest,
+            mem,
         }
     }
 
@@ -130,32 +193,39 @@ impl Multilevel {
         s: &mut OperatorScratch,
     ) {
         let c = Chebyshev::new(self.lambda_max, self.params.lower);
-        let inv = &con.inv_diag;
-        let pi = &con.projector;
-        d.par_iter_mut()
-            .zip(r.par_iter())
-            .zip(x.par_iter_mut())
-            .enumerate()
-            .with_min_len(ROWS)
-            .for_each(|(a, ((da, ra), xa))| {
-                *da = inv[a] * ra / c.theta;
-                *xa += *da;
-            });
+        let (inv, pi) = (&con.inv_diag, &con.projector);
+        chebyshev_first(inv, &c, r, x, d);
         let mut rho = 1.0 / c.sigma;
         for _ in 1..self.params.degree {
             self.op_with(pi, d, s, t, |_, ta, y| *ta = y);
             let (c1, c2, next) = c.step(rho);
-            r.par_iter_mut()
-                .zip(d.par_iter_mut())
-                .zip(t.par_iter())
-                .zip(x.par_iter_mut())
-                .enumerate()
-                .with_min_len(ROWS)
-                .for_each(|(a, (((ra, da), ta), xa))| {
-                    *ra -= ta;
-                    *da = *da * c1 + inv[a] * *ra * c2;
-                    *xa += *da;
-                });
+            chebyshev_step(inv, (c1, c2), r, d, t, x);
+            rho = next;
+        }
+    }
+
+    /// [`chebyshev`](Self::chebyshev) of the `K` vectors of `s.r` into `x`, their products
+    /// in one batch.
+    fn chebyshev_batch<const K: usize>(
+        &self,
+        con: &Constraints,
+        x: &mut [&mut [Vector3<f64>]; K],
+        s: &mut MultilevelBatchScratch<K>,
+    ) {
+        let c = Chebyshev::new(self.lambda_max, self.params.lower);
+        let (inv, pi) = (&con.inv_diag, &con.projector);
+        for j in 0..K {
+            chebyshev_first(inv, &c, &s.r[j], x[j], &mut s.d[j]);
+        }
+        let mut rho = 1.0 / c.sigma;
+        for _ in 1..self.params.degree {
+            let d = s.d.each_ref().map(|v| &v[..]);
+            let t = s.t.each_mut().map(|v| &mut v[..]);
+            self.op_batch(pi, d, &mut s.k, t, |_, _, ta, y| *ta = y);
+            let (c1, c2, next) = c.step(rho);
+            for j in 0..K {
+                chebyshev_step(inv, (c1, c2), &mut s.r[j], &mut s.d[j], &s.t[j], x[j]);
+            }
             rho = next;
         }
     }
@@ -186,6 +256,97 @@ impl Multilevel {
         self.op_with(pi, e, k, r, |_, ra, y| *ra -= y);
         // Post-smoothing accumulates into x directly.
         self.chebyshev(con, r, x, d, t, k);
+    }
+
+    /// `x_j = B b_j` for `K` right-hand sides at once: [`apply`](Self::apply) of each, with
+    /// the mesh level's products of all of them in one pass over its operator (the cycle's
+    /// cost on the mesh is that operator's bytes, read once here for the `K`). The results
+    /// are [`apply`](Self::apply)'s to the last bit.
+    pub fn apply_batch<const K: usize>(
+        &self,
+        con: &Constraints,
+        b: [&[Vector3<f64>]; K],
+        mut x: [&mut [Vector3<f64>]; K],
+        s: &mut MultilevelBatchScratch<K>,
+    ) {
+        let pi = &con.projector;
+        for (xj, (rj, bj)) in x.iter_mut().zip(s.r.iter_mut().zip(b)) {
+            xj.par_iter_mut().with_min_len(ROWS).for_each(|v| *v = Vector3::zeros());
+            rj.copy_from_slice(bj);
+        }
+        self.chebyshev_batch(con, &mut x, s);
+        let xs = x.each_ref().map(|v| &v[..]);
+        let r = s.r.each_mut().map(|v| &mut v[..]);
+        self.op_batch(pi, xs, &mut s.k, r, |j, a, ra, y| *ra = b[j][a] - y);
+        let numbers = &con.levels.as_ref().unwrap_or(&self.levels).levels;
+        let st = &self.structure;
+        let first = &mut s.levels[0];
+        let r = s.r.each_ref().map(|v| &v[..]);
+        restrict_batch(&st.pt32, r, first.each_mut().map(|h| &mut h[0][..]));
+        self.coarse_cycle_batch(numbers, 0, &mut s.levels, &mut s.coarsest, &mut s.mem);
+        let first = s.levels[0].each_ref().map(|h| &h[1][..]);
+        prolong_batch(&st.p32, first, s.e.each_mut().map(|v| &mut v[..]));
+        for (xj, e) in x.iter_mut().zip(&mut s.e) {
+            pi.apply(e);
+            xj.par_iter_mut().zip(e.par_iter()).with_min_len(ROWS).for_each(|(xa, ea)| {
+                *xa += ea;
+            });
+        }
+        let e = s.e.each_ref().map(|v| &v[..]);
+        let r = s.r.each_mut().map(|v| &mut v[..]);
+        self.op_batch(pi, e, &mut s.k, r, |_, _, ra, y| *ra -= y);
+        self.chebyshev_batch(con, &mut x, s);
+    }
+
+    /// [`op_with`](Self::op_with) of `K` vectors in one pass: `f(j, a, out_j_a, (Π K x_j)_a)`.
+    fn op_batch<const K: usize>(
+        &self,
+        pi: &Projector,
+        x: [&[Vector3<f64>]; K],
+        s: &mut BatchScratch<K>,
+        out: [&mut [Vector3<f64>]; K],
+        f: impl Fn(usize, usize, &mut Vector3<f64>, Vector3<f64>) + Sync,
+    ) {
+        self.op32.apply_batch(x, s, out, |j, a, o, y| {
+            let y = if pi.constrained[a] { pi.matrix[a] * y } else { y };
+            f(j, a, o, y);
+        });
+    }
+
+    /// [`coarse_cycle`](Self::coarse_cycle) of level `l` for `K` vectors, `levels[0]` being
+    /// level `l`'s buffers: the products of each level in one pass over its blocks.
+    fn coarse_cycle_batch<const K: usize>(
+        &self,
+        numbers: &Levels,
+        l: usize,
+        levels: &mut [[[Vec<V6>; 5]; K]],
+        coarsest: &mut [f64],
+        mem: &mut MemBuffer,
+    ) {
+        let (here, below) = levels.split_first_mut().expect("a level");
+        let Some(level) = numbers.smoothed.get(l) else {
+            return solve_coarsest_batch(numbers, here, coarsest, mem);
+        };
+        let link = &self.structure.coarse.links[l];
+        for [b, x, r, ..] in here.iter_mut() {
+            x.iter_mut().for_each(|v| *v = V6::zeros());
+            r.copy_from_slice(b);
+        }
+        let degree = self.params.coarse_degree;
+        chebyshev6_batch(level, self.params.lower, degree, here);
+        residual6_batch(&level.a32, here);
+        let next = &mut below[0];
+        let r = here.each_ref().map(|h| &h[2][..]);
+        restrict_batch(&link.pt32, r, next.each_mut().map(|h| &mut h[0][..]));
+        self.coarse_cycle_batch(numbers, l + 1, below, coarsest, mem);
+        let next = below[0].each_ref().map(|h| &h[1][..]);
+        let d = here.each_mut().map(|h| &mut h[3][..]);
+        prolong_batch(&link.p32, next, d);
+        for [_, x, _, d, _] in here.iter_mut() {
+            x.iter_mut().zip(d.iter()).for_each(|(xi, di)| *xi += di);
+        }
+        residual6_batch(&level.a32, here);
+        chebyshev6_batch(level, self.params.lower, degree, here);
     }
 
     /// The cycle of coarse level `l` (0: the first): `here[1] = B_l here[0]`.
@@ -240,6 +401,48 @@ impl Chebyshev {
     }
 }
 
+/// The first Chebyshev step on the mesh from `x`'s start: `d = D⁻¹ r / θ`, `x += d`.
+fn chebyshev_first(
+    inv: &[nalgebra::Matrix3<f64>],
+    c: &Chebyshev,
+    r: &[Vector3<f64>],
+    x: &mut [Vector3<f64>],
+    d: &mut [Vector3<f64>],
+) {
+    d.par_iter_mut()
+        .zip(r.par_iter())
+        .zip(x.par_iter_mut())
+        .enumerate()
+        .with_min_len(ROWS)
+        .for_each(|(a, ((da, ra), xa))| {
+            *da = inv[a] * ra / c.theta;
+            *xa += *da;
+        });
+}
+
+/// A further Chebyshev step on the mesh with `t = A d`: `r −= t`, `d = c1 d + c2 D⁻¹ r`,
+/// `x += d`.
+fn chebyshev_step(
+    inv: &[nalgebra::Matrix3<f64>],
+    (c1, c2): (f64, f64),
+    r: &mut [Vector3<f64>],
+    d: &mut [Vector3<f64>],
+    t: &[Vector3<f64>],
+    x: &mut [Vector3<f64>],
+) {
+    r.par_iter_mut()
+        .zip(d.par_iter_mut())
+        .zip(t.par_iter())
+        .zip(x.par_iter_mut())
+        .enumerate()
+        .with_min_len(ROWS)
+        .for_each(|(a, (((ra, da), ta), xa))| {
+            *ra -= ta;
+            *da = *da * c1 + inv[a] * *ra * c2;
+            *xa += *da;
+        });
+}
+
 /// Chebyshev smoothing of a coarse level: `x += p(D⁻¹A) D⁻¹ r`, `r` overwritten.
 fn chebyshev6(
     level: &Level,
@@ -277,6 +480,180 @@ fn chebyshev6(
                 *xi += *di;
             });
         rho = next;
+    }
+}
+
+/// [`chebyshev6`] of `K` vectors (`here[j]`: right-hand side, solution, residual and the
+/// two Chebyshev vectors), their products in one pass.
+fn chebyshev6_batch<const K: usize>(
+    level: &Level,
+    lower: f64,
+    degree: usize,
+    here: &mut [[Vec<V6>; 5]; K],
+) {
+    let c = Chebyshev::new(level.lambda, lower);
+    let inv = &level.inv_diag;
+    for [_, x, r, d, _] in here.iter_mut() {
+        d.par_iter_mut()
+            .zip(r.par_iter())
+            .zip(x.par_iter_mut())
+            .enumerate()
+            .with_min_len(COARSE_ROWS)
+            .for_each(|(i, ((di, ri), xi))| {
+                *di = inv[i].cast::<f64>() * ri / c.theta;
+                *xi += *di;
+            });
+    }
+    let mut rho = 1.0 / c.sigma;
+    for _ in 1..degree {
+        let (d, t) = split_batch(here, 3, 4);
+        multiply6_batch(&level.a32, d, t);
+        let (c1, c2, next) = c.step(rho);
+        for [_, x, r, d, t] in here.iter_mut() {
+            r.par_iter_mut()
+                .zip(d.par_iter_mut())
+                .zip(t.par_iter())
+                .zip(x.par_iter_mut())
+                .enumerate()
+                .with_min_len(COARSE_ROWS)
+                .for_each(|(i, (((ri, di), ti), xi))| {
+                    *ri -= ti;
+                    *di = *di * c1 + inv[i].cast::<f64>() * *ri * c2;
+                    *xi += *di;
+                });
+        }
+        rho = next;
+    }
+}
+
+/// Vector `read` of every `here[j]` to read and vector `write` to write (`read ≠ write`).
+#[allow(clippy::type_complexity)]
+fn split_batch<const K: usize>(
+    here: &mut [[Vec<V6>; 5]; K],
+    read: usize,
+    write: usize,
+) -> ([&[V6]; K], [&mut [V6]; K]) {
+    assert_ne!(read, write);
+    let mut pairs = here.each_mut().map(|h| {
+        let (lo, hi) = h.split_at_mut(read.max(write));
+        let (a, b) = (&mut lo[read.min(write)], &mut hi[0]);
+        if read < write {
+            (Some(&a[..]), Some(&mut b[..]))
+        } else {
+            (Some(&b[..]), Some(&mut a[..]))
+        }
+    });
+    let r = std::array::from_fn(|j| pairs[j].0.take().expect("each once"));
+    let w = std::array::from_fn(|j| pairs[j].1.take().expect("each once"));
+    (r, w)
+}
+
+/// `here[j][2] = here[j][0] − A here[j][1]` for every `j`, the products in one pass.
+fn residual6_batch<const K: usize>(a: &Blocks<f32, 6, 6>, here: &mut [[Vec<V6>; 5]; K]) {
+    let (x, r) = split_batch(here, 1, 2);
+    multiply6_batch(a, x, r);
+    for [b, _, r, ..] in here.iter_mut() {
+        r.iter_mut().zip(b.iter()).for_each(|(ri, bi)| *ri = bi - *ri);
+    }
+}
+
+/// `y_j = A x_j` on a coarse level for `K` vectors, each block read and widened once.
+fn multiply6_batch<const K: usize>(a: &Blocks<f32, 6, 6>, x: [&[V6]; K], y: [&mut [V6]; K]) {
+    let tasks = batch_chunks(y, COARSE_ROWS);
+    tasks.into_par_iter().enumerate().for_each(|(t, ys)| {
+        for k in 0..ys[0].len() {
+            let (cols, vals) = a.row(t * COARSE_ROWS + k);
+            let mut acc = [V6::zeros(); K];
+            for (&c, b) in cols.iter().zip(vals) {
+                let b = b.cast::<f64>();
+                for j in 0..K {
+                    acc[j] += b * x[j][c as usize];
+                }
+            }
+            for j in 0..K {
+                ys[j][k] = acc[j];
+            }
+        }
+    });
+}
+
+/// [`restrict`] of `K` vectors, each block read and widened once.
+fn restrict_batch<const R: usize, const K: usize>(
+    pt: &Blocks<f32, 6, R>,
+    r: [&[SVector<f64, R>]; K],
+    c: [&mut [V6]; K],
+) {
+    let tasks = batch_chunks(c, COARSE_ROWS);
+    tasks.into_par_iter().enumerate().for_each(|(t, cs)| {
+        for k in 0..cs[0].len() {
+            let (nodes, vals) = pt.row(t * COARSE_ROWS + k);
+            let mut acc = [V6::zeros(); K];
+            for (&a, b) in nodes.iter().zip(vals) {
+                let b = b.cast::<f64>();
+                for j in 0..K {
+                    acc[j] += b * r[j][a as usize];
+                }
+            }
+            for j in 0..K {
+                cs[j][k] = acc[j];
+            }
+        }
+    });
+}
+
+/// [`prolong`] of `K` vectors, each block read and widened once.
+fn prolong_batch<const R: usize, const K: usize>(
+    p: &Blocks<f32, R, 6>,
+    x: [&[V6]; K],
+    e: [&mut [SVector<f64, R>]; K],
+) {
+    let tasks = batch_chunks(e, 256);
+    tasks.into_par_iter().enumerate().for_each(|(t, es)| {
+        for k in 0..es[0].len() {
+            let (cols, vals) = p.row(t * 256 + k);
+            let mut acc = [SVector::<f64, R>::zeros(); K];
+            for (&c, b) in cols.iter().zip(vals) {
+                let b = b.cast::<f64>();
+                for j in 0..K {
+                    acc[j] += b * x[j][c as usize];
+                }
+            }
+            for j in 0..K {
+                es[j][k] = acc[j];
+            }
+        }
+    });
+}
+
+/// `here[j][1] = A⁻¹ here[j][0]` on the coarsest level, the `K` right-hand sides in one
+/// solve (the factor read once for all of them).
+fn solve_coarsest_batch<const K: usize>(
+    numbers: &Levels,
+    here: &mut [[Vec<V6>; 5]; K],
+    c: &mut [f64],
+    mem: &mut MemBuffer,
+) {
+    let m = 6 * here[0][0].len();
+    for (j, [b, ..]) in here.iter().enumerate() {
+        for (i, v) in b.iter().enumerate() {
+            c[j * m + 6 * i..j * m + 6 * i + 6].copy_from_slice(v.as_slice());
+        }
+    }
+    let llt = LltRef::new(&numbers.symbolic, &numbers.factor);
+    let need = numbers.symbolic.solve_in_place_scratch::<f64>(K, Par::Seq);
+    if mem.len() < need.unaligned_bytes_required() {
+        *mem = MemBuffer::new(need);
+    }
+    llt.solve_in_place_with_conj(
+        Conj::No,
+        MatMut::from_column_major_slice_mut(&mut c[..K * m], m, K),
+        Par::Seq,
+        MemStack::new(mem),
+    );
+    for (j, [_, x, ..]) in here.iter_mut().enumerate() {
+        for (i, v) in x.iter_mut().enumerate() {
+            *v = V6::from_column_slice(&c[j * m + 6 * i..j * m + 6 * i + 6]);
+        }
     }
 }
 

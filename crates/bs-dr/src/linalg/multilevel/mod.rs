@@ -54,7 +54,7 @@ pub mod split;
 pub mod tentative;
 
 pub use constraints::Constraints;
-pub use cycle::MultilevelScratch;
+pub use cycle::{MultilevelBatchScratch, MultilevelScratch};
 pub use params::{MultilevelError, MultilevelParams};
 pub use projector::Projector;
 pub use setup::Multilevel;

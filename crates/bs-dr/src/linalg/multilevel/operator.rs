@@ -20,7 +20,7 @@ use rayon::prelude::*;
 
 use crate::kernels::simd::{BlockOp, Lanes, dispatch};
 use crate::linalg::nodal::NodalMatrix;
-use crate::linalg::sparse::{RankOneSum, RankOneSum32, split_rows};
+use crate::linalg::sparse::{RankOneSum, RankOneSum32, batch_chunks, split_rows};
 
 /// Nodes per rayon task of the passes.
 const ROWS: usize = 2048;
@@ -47,6 +47,14 @@ pub(crate) struct OperatorScratch {
     xs: Vec<[f64; 4]>,
     /// `s` of the extra terms.
     extra: Vec<f64>,
+}
+
+/// Scratch of [`Operator32::apply_batch`]: `x̂` of the `K` vectors side by side per node, so
+/// that one gather of a column serves all of them.
+#[derive(Debug, Clone)]
+pub(crate) struct BatchScratch<const K: usize> {
+    xs: Vec<[[f64; 4]; K]>,
+    extra: [Vec<f64>; K],
 }
 
 impl Operator32 {
@@ -136,6 +144,40 @@ impl Operator32 {
             xs: vec![[0.0; 4]; self.ptr.len() - 1],
             extra: vec![0.0; self.extra.as_ref().map_or(0, RankOneSum32::terms)],
         }
+    }
+
+    /// Scratch buffers for [`apply_batch`](Self::apply_batch).
+    pub(crate) fn batch_scratch<const K: usize>(&self) -> BatchScratch<K> {
+        let terms = self.extra.as_ref().map_or(0, RankOneSum32::terms);
+        BatchScratch {
+            xs: vec![[[0.0; 4]; K]; self.ptr.len() - 1],
+            extra: std::array::from_fn(|_| vec![0.0; terms]),
+        }
+    }
+
+    /// `then(j, a, out_j_a, (K₀ x_j)_a)` for every vector `j` and node `a`: the `K` products
+    /// of [`apply_with`](Self::apply_with) in one pass over the slots (each slot read once
+    /// for all of them, the product's cost being the slots' bytes).
+    pub(crate) fn apply_batch<const K: usize>(
+        &self,
+        x: [&[Vector3<f64>]; K],
+        s: &mut BatchScratch<K>,
+        out: [&mut [Vector3<f64>]; K],
+        then: impl Fn(usize, usize, &mut Vector3<f64>, Vector3<f64>) + Sync,
+    ) {
+        s.xs.par_chunks_mut(ROWS).enumerate().for_each(|(k, chunk)| {
+            dispatch(ProjectBatch { op: self, x, out: chunk, start: k * ROWS })
+        });
+        if let Some(extra) = &self.extra {
+            for (xj, sj) in x.iter().zip(s.extra.iter_mut()) {
+                extra.project_into(xj, sj);
+            }
+        }
+        let tasks = batch_chunks(out, ROWS);
+        let (xs, terms, then) = (&s.xs[..], &s.extra, &then);
+        tasks.into_par_iter().enumerate().for_each(|(k, out)| {
+            dispatch(MultiplyBatch { op: self, xs, terms, out, start: k * ROWS, then })
+        });
     }
 
     /// `then(a, out_a, (K₀ x)_a)` for every node `a`.
@@ -244,6 +286,93 @@ impl<F: Fn(usize, &mut Vector3<f64>, Vector3<f64>)> BlockOp for Multiply<'_, F> 
     }
 }
 
+/// Pass one of [`Operator32::apply_batch`] on a chunk of nodes: `x̂_jr = (x_jr, w_r c_r·x_j)`.
+struct ProjectBatch<'a, const K: usize> {
+    op: &'a Operator32,
+    x: [&'a [Vector3<f64>]; K],
+    out: &'a mut [[[f64; 4]; K]],
+    start: usize,
+}
+
+impl<const K: usize> BlockOp for ProjectBatch<'_, K> {
+    type Output = ();
+    #[inline(always)]
+    fn run<L: Lanes>(self, l: L) {
+        let op = self.op;
+        for (i, o) in self.out.iter_mut().enumerate() {
+            let r = self.start + i;
+            let mut acc = [l.splat(0.0); K];
+            if !op.weight.is_empty() {
+                let (lo, hi) = (op.ptr[r] as usize, op.ptr[r + 1] as usize);
+                for (c, &m) in op.proj[lo..hi].iter().zip(&op.col[lo..hi]) {
+                    let c = l.load_f32(*c);
+                    for j in 0..K {
+                        let y = &self.x[j][m as usize];
+                        acc[j] = l.mul_add(c, l.load([y.x, y.y, y.z, 0.0]), acc[j]);
+                    }
+                }
+            }
+            for j in 0..K {
+                let v = self.x[j][r];
+                let s = if op.weight.is_empty() {
+                    0.0
+                } else {
+                    let a = l.store(acc[j]);
+                    op.weight[r] * (a[0] + a[1] + a[2])
+                };
+                o[j] = [v.x, v.y, v.z, s];
+            }
+        }
+    }
+}
+
+/// Pass two of [`Operator32::apply_batch`] on a chunk of rows.
+struct MultiplyBatch<'a, F, const K: usize> {
+    op: &'a Operator32,
+    xs: &'a [[[f64; 4]; K]],
+    terms: &'a [Vec<f64>; K],
+    out: [&'a mut [Vector3<f64>]; K],
+    start: usize,
+    then: &'a F,
+}
+
+impl<F: Fn(usize, usize, &mut Vector3<f64>, Vector3<f64>), const K: usize> BlockOp
+    for MultiplyBatch<'_, F, K>
+{
+    type Output = ();
+    #[inline(always)]
+    fn run<L: Lanes>(self, l: L) {
+        let op = self.op;
+        let out = self.out;
+        let len = out[0].len();
+        for i in 0..len {
+            let r = self.start + i;
+            let (lo, hi) = (op.ptr[r] as usize, op.ptr[r + 1] as usize);
+            let zero = l.splat(0.0);
+            let mut a = [[zero; 3]; K];
+            for (m, &c) in op.rows[lo..hi].iter().zip(&op.col[lo..hi]) {
+                let (m0, m1, m2) = (l.load_f32(m[0]), l.load_f32(m[1]), l.load_f32(m[2]));
+                let xc = &self.xs[c as usize];
+                for j in 0..K {
+                    let x = l.load(xc[j]);
+                    a[j][0] = l.mul_add(m0, x, a[j][0]);
+                    a[j][1] = l.mul_add(m1, x, a[j][1]);
+                    a[j][2] = l.mul_add(m2, x, a[j][2]);
+                }
+            }
+            for j in 0..K {
+                let t = l.transpose([a[j][0], a[j][1], a[j][2], zero]);
+                let mut acc = l.add(l.add(t[0], t[1]), l.add(t[2], t[3]));
+                if let Some(extra) = &op.extra {
+                    acc = extra.expand_row_lanes(l, r, &self.terms[j], acc);
+                }
+                let v = l.store(acc);
+                (self.then)(j, r, &mut out[j][i], Vector3::new(v[0], v[1], v[2]));
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -290,6 +419,20 @@ mod tests {
             let err = (got[a] - expect[a]).amax();
             assert!(err <= 1e-6 * abs[a].amax(), "node {a}: {err:e} against {:e}", abs[a].amax());
         }
+        // The batch of three (x, 2x − 1, and zero) gives each vector's single product, to
+        // the last bit: the same sums in the same order.
+        let x2: Vec<Vector3<f64>> = x.iter().map(|v| v * 2.0 - Vector3::repeat(1.0)).collect();
+        let zero = vec![Vector3::zeros(); n];
+        let mut one2 = vec![Vector3::zeros(); n];
+        op.apply_with(&x2, &mut s, &mut one2, |_, o, y| *o = y);
+        let mut b =
+            [vec![Vector3::zeros(); n], vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]];
+        let [b0, b1, b2] = &mut b;
+        let mut bs = op.batch_scratch::<3>();
+        op.apply_batch([&x, &x2, &zero], &mut bs, [b0, b1, b2], |_, _, o, y| *o = y);
+        assert_eq!(b[0], got);
+        assert_eq!(b[1], one2);
+        assert!(b[2].iter().all(|v| *v == Vector3::zeros()));
     }
 
     fn model(tet: TetFormulation, two_solids: bool) -> Model {

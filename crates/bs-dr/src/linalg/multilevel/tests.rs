@@ -495,3 +495,49 @@ fn a_node_no_element_holds_leaves_the_hierarchy_and_its_iterations_alone() {
     // The orphan changes its aggregate's tentative modes only at its own (fixed) row.
     assert!(with.abs_diff(without) <= 2, "{with} iterations with the orphan, {without} without");
 }
+
+/// The batched cycle is the single one, to the last bit, for every vector of the batch (a
+/// zero one among them): on a T4 and a T4ANP block whose top nodes slide on a plane, with
+/// two levels and with a hierarchy of at least three (the smoothed coarse levels batched).
+#[test]
+fn a_batch_of_cycles_gives_each_vectors_cycle() {
+    let deep =
+        MultilevelParams { aggregate_size: 1.5, coarsest: 60, ..MultilevelParams::default() };
+    for (tet, params) in [
+        (TetFormulation::T4, MultilevelParams::default()),
+        (TetFormulation::T4Anp, MultilevelParams::default()),
+        (TetFormulation::T4, deep),
+        (TetFormulation::T4Anp, deep),
+    ] {
+        let m = model(tet, if params == deep { 12 } else { 6 });
+        let fixed = bottom_fixed(&m);
+        let tl = with_params(&m, &fixed, params);
+        let depth = tl.sizes().0.len();
+        assert!(params == MultilevelParams::default() || depth >= 3, "coarse levels {depth}");
+        let mut con = tl.constraints();
+        let top = (0..m.node_count()).filter(|&a| m.reference()[a].z > 10.0 - 1e-9);
+        for a in top {
+            con.projector.set(a, &[Vector3::new(0.0, 0.6, 0.8)]);
+        }
+        let con = tl.constraints_like(&con);
+        let n = m.node_count();
+        let mut b1 = shear_load(&m, &fixed);
+        let mut b2: Vec<Vector3<f64>> =
+            m.reference().iter().map(|x| Vector3::new(x.y.sin(), 0.2, -x.x * x.z * 0.01)).collect();
+        con.projector.apply(&mut b1);
+        con.projector.apply(&mut b2);
+        let zero = vec![Vector3::zeros(); n];
+        let mut single = [vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]];
+        let mut s = tl.scratch();
+        tl.apply(&con, &b1, &mut single[0], &mut s);
+        tl.apply(&con, &b2, &mut single[1], &mut s);
+        let mut batch = std::array::from_fn::<_, 3, _>(|_| vec![Vector3::zeros(); n]);
+        let mut bs = tl.batch_scratch::<3>();
+        let [x0, x1, x2] = &mut batch;
+        tl.apply_batch(&con, [&b2, &zero, &b1], [x0, x1, x2], &mut bs);
+        assert_eq!(batch[0], single[1], "{tet:?}, {depth} levels");
+        assert_eq!(batch[2], single[0], "{tet:?}, {depth} levels");
+        assert!(batch[1].iter().all(|v| *v == Vector3::zeros()), "{tet:?}");
+        assert!(batch[0].iter().any(|v| v.norm() > 0.0));
+    }
+}
