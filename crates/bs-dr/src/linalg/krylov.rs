@@ -12,6 +12,11 @@ use super::sparse::norm;
 /// A linear map on nodal vectors (`out = A v`), as the solvers pass operators around.
 pub type NodalMap<'a> = dyn FnMut(&[Vector3<f64>], &mut [Vector3<f64>]) + 'a;
 
+/// A linear map applied to `K` nodal vectors at once, `outs[j] = M ins[j]`
+/// ([`Gmres::solve_batch`]'s preconditioner).
+pub type BatchMap<'a, const K: usize> =
+    dyn FnMut([&[Vector3<f64>]; K], [&mut [Vector3<f64>]; K]) + 'a;
+
 /// Result of one [`Gmres::solve`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GmresInfo {
@@ -89,69 +94,179 @@ impl Gmres {
         rtol: f64,
         max_iterations: usize,
     ) -> GmresInfo {
+        let mut lane = self.begin(op, b, x, (rtol, max_iterations));
+        while self.needs_preconditioner(&lane) {
+            let (v, z) = self.slots(lane.k);
+            prec(v, z);
+            self.advance(op, &mut lane, b, x);
+        }
+        lane.done.expect("a lane that needs nothing more has ended")
+    }
+
+    /// [`solve`](Self::solve) of `K` systems with one operator in lockstep, system `j` in
+    /// workspace `gs[j]`: every iteration preconditions the `K` Krylov vectors together
+    /// (`prec` gets them at once, so that a multilevel cycle reads its matrices once for
+    /// all of them) and applies the operator to each. Each system stops at its own
+    /// tolerance with the iterates [`solve`](Self::solve) gives it alone; one that has
+    /// ended rides along in `prec` on its own stale vectors, the result thrown away.
+    pub fn solve_batch<const K: usize>(
+        gs: &mut [Gmres; K],
+        op: &mut NodalMap<'_>,
+        prec: &mut BatchMap<'_, K>,
+        b: [&[Vector3<f64>]; K],
+        mut x: [&mut [Vector3<f64>]; K],
+        (rtol, max_iterations): (f64, usize),
+    ) -> [GmresInfo; K] {
+        let mut lanes: Vec<Lane> = gs
+            .iter_mut()
+            .zip(b.iter().zip(x.iter_mut()))
+            .map(|(g, (bj, xj))| g.begin(op, bj, xj, (rtol, max_iterations)))
+            .collect();
+        loop {
+            let active: Vec<bool> =
+                gs.iter().zip(&lanes).map(|(g, l)| g.needs_preconditioner(l)).collect();
+            if !active.contains(&true) {
+                break;
+            }
+            let (ins, outs): (Vec<_>, Vec<_>) = gs
+                .iter_mut()
+                .zip(&lanes)
+                .zip(&active)
+                .map(|((g, lane), &on)| g.slots(if on { lane.k } else { 0 }))
+                .unzip();
+            let ins: [&[Vector3<f64>]; K] = ins.try_into().expect("K lanes");
+            let outs: [&mut [Vector3<f64>]; K] = outs.try_into().expect("K lanes");
+            prec(ins, outs);
+            for (j, g) in gs.iter_mut().enumerate().filter(|&(j, _)| active[j]) {
+                g.advance(op, &mut lanes[j], b[j], x[j]);
+            }
+        }
+        std::array::from_fn(|j| lanes[j].done.expect("every lane has ended"))
+    }
+
+    /// The Krylov vector `k` and the slot of its preconditioned image.
+    fn slots(&mut self, k: usize) -> (&[Vector3<f64>], &mut [Vector3<f64>]) {
+        (&self.v[k], &mut self.z[k])
+    }
+
+    /// Starts a solve of `A x = b` (`x = 0`); ended at once when `b` is zero or not finite
+    /// (or the budget is zero).
+    fn begin(
+        &mut self,
+        op: &mut NodalMap<'_>,
+        b: &[Vector3<f64>],
+        x: &mut [Vector3<f64>],
+        (rtol, max_iterations): (f64, usize),
+    ) -> Lane {
         x.iter_mut().for_each(|v| *v = Vector3::zeros());
         let bn = norm(b);
+        let mut lane = Lane {
+            bn,
+            beta: bn,
+            cycle_start: bn,
+            k: 0,
+            total: 0,
+            breakdown: false,
+            rtol,
+            max_iterations,
+            done: None,
+        };
         if bn == 0.0 || !bn.is_finite() {
-            return GmresInfo { iterations: 0, relative_residual: 0.0, converged: bn == 0.0 };
+            let info = GmresInfo { iterations: 0, relative_residual: 0.0, converged: bn == 0.0 };
+            lane.done = Some(info);
+            return lane;
         }
-        let m = self.restart;
-        let mut total = 0;
         // r0 = b (x = 0).
         self.v[0].copy_from_slice(b);
-        let mut beta = bn;
+        self.open_cycle(&mut lane);
+        if !self.inside_cycle(&lane) {
+            self.close_cycle(op, &mut lane, b, x);
+        }
+        lane
+    }
+
+    /// Whether `lane` waits for `M⁻¹ v_k` in `z_k`.
+    fn needs_preconditioner(&self, lane: &Lane) -> bool {
+        lane.done.is_none() && self.inside_cycle(lane)
+    }
+
+    fn inside_cycle(&self, lane: &Lane) -> bool {
+        lane.k < self.restart && lane.total < lane.max_iterations
+    }
+
+    /// A restart cycle from `v_0 = r / β`.
+    fn open_cycle(&mut self, lane: &mut Lane) {
+        lane.cycle_start = lane.beta;
+        let inv = 1.0 / lane.beta;
+        self.v[0].par_iter_mut().with_min_len(2048).for_each(|a| *a *= inv);
+        self.g.iter_mut().for_each(|v| *v = 0.0);
+        self.g[0] = lane.beta;
+        lane.k = 0;
+        lane.breakdown = false;
+    }
+
+    /// One iteration of `lane` with `z_k = M⁻¹ v_k` in place: `w = A z_k` orthogonalised
+    /// against the basis, the Hessenberg column rotated; the cycle closed when it ends.
+    fn advance(
+        &mut self,
+        op: &mut NodalMap<'_>,
+        lane: &mut Lane,
+        b: &[Vector3<f64>],
+        x: &mut [Vector3<f64>],
+    ) {
+        let k = lane.k;
+        op(&self.z[k], &mut self.w);
+        lane.total += 1;
+        // Classical Gram–Schmidt twice (CGS2): as stable as modified Gram–Schmidt, with all
+        // inner products of a sweep in one pass over the vectors.
+        let basis = &self.v[..=k];
+        let h1 = multi_dot(basis, &self.w);
+        subtract(basis, &h1, &mut self.w);
+        let h2 = multi_dot(basis, &self.w);
+        let hn = subtract(basis, &h2, &mut self.w).sqrt();
+        for j in 0..=k {
+            self.h[j][k] = h1[j] + h2[j];
+        }
+        self.h[k + 1][k] = hn;
+        for j in 0..k {
+            let t = self.cs[j] * self.h[j][k] + self.sn[j] * self.h[j + 1][k];
+            self.h[j + 1][k] = -self.sn[j] * self.h[j][k] + self.cs[j] * self.h[j + 1][k];
+            self.h[j][k] = t;
+        }
+        let d = self.h[k][k].hypot(self.h[k + 1][k]);
+        if d == 0.0 || !d.is_finite() {
+            lane.breakdown = true;
+            return self.close_cycle(op, lane, b, x);
+        }
+        self.cs[k] = self.h[k][k] / d;
+        self.sn[k] = self.h[k + 1][k] / d;
+        self.h[k][k] = d;
+        self.h[k + 1][k] = 0.0;
+        self.g[k + 1] = -self.sn[k] * self.g[k];
+        self.g[k] *= self.cs[k];
+        lane.k = k + 1;
+        if self.g[k + 1].abs() <= lane.rtol * lane.bn || hn == 0.0 {
+            return self.close_cycle(op, lane, b, x);
+        }
+        let inv = 1.0 / hn;
+        let (w, next) = (&self.w, &mut self.v[k + 1]);
+        next.par_iter_mut().zip(w.par_iter()).with_min_len(2048).for_each(|(a, b)| *a = b * inv);
+        if !self.inside_cycle(lane) {
+            self.close_cycle(op, lane, b, x);
+        }
+    }
+
+    /// The end of a restart cycle: `x += Z y` with `H y = g`, then the end of the solve or
+    /// a restart from the true residual (and, should the new cycle have no room, its end).
+    fn close_cycle(
+        &mut self,
+        op: &mut NodalMap<'_>,
+        lane: &mut Lane,
+        b: &[Vector3<f64>],
+        x: &mut [Vector3<f64>],
+    ) {
         loop {
-            let cycle_start = beta;
-            let inv = 1.0 / beta;
-            self.v[0].par_iter_mut().with_min_len(2048).for_each(|a| *a *= inv);
-            self.g.iter_mut().for_each(|v| *v = 0.0);
-            self.g[0] = beta;
-            let mut k = 0;
-            let mut breakdown = false;
-            while k < m && total < max_iterations {
-                prec(&self.v[k], &mut self.z[k]);
-                op(&self.z[k], &mut self.w);
-                total += 1;
-                // Classical Gram–Schmidt twice (CGS2): as stable as modified Gram–Schmidt,
-                // with all inner products of a sweep in one pass over the vectors.
-                let basis = &self.v[..=k];
-                let h1 = multi_dot(basis, &self.w);
-                subtract(basis, &h1, &mut self.w);
-                let h2 = multi_dot(basis, &self.w);
-                let hn = subtract(basis, &h2, &mut self.w).sqrt();
-                for j in 0..=k {
-                    self.h[j][k] = h1[j] + h2[j];
-                }
-                self.h[k + 1][k] = hn;
-                for j in 0..k {
-                    let t = self.cs[j] * self.h[j][k] + self.sn[j] * self.h[j + 1][k];
-                    self.h[j + 1][k] = -self.sn[j] * self.h[j][k] + self.cs[j] * self.h[j + 1][k];
-                    self.h[j][k] = t;
-                }
-                let d = self.h[k][k].hypot(self.h[k + 1][k]);
-                if d == 0.0 || !d.is_finite() {
-                    breakdown = true;
-                    break;
-                }
-                self.cs[k] = self.h[k][k] / d;
-                self.sn[k] = self.h[k + 1][k] / d;
-                self.h[k][k] = d;
-                self.h[k + 1][k] = 0.0;
-                self.g[k + 1] = -self.sn[k] * self.g[k];
-                self.g[k] *= self.cs[k];
-                k += 1;
-                if self.g[k].abs() <= rtol * bn || hn == 0.0 {
-                    break;
-                }
-                let inv = 1.0 / hn;
-                let (head, tail) = self.v.split_at_mut(k);
-                let _ = head;
-                tail[0]
-                    .par_iter_mut()
-                    .zip(self.w.par_iter())
-                    .with_min_len(2048)
-                    .for_each(|(a, b)| *a = b * inv);
-            }
-            // x += Z y with H y = g.
+            let k = lane.k;
             let mut y = vec![0.0; k];
             for i in (0..k).rev() {
                 let mut s = self.g[i];
@@ -166,13 +281,14 @@ impl Gmres {
                     *a += zj[i] * yj;
                 }
             });
+            let (bn, rtol) = (lane.bn, lane.rtol);
             let estimate = self.g[k].abs() / bn;
-            if estimate <= rtol || total >= max_iterations || breakdown {
-                return GmresInfo {
-                    iterations: total,
-                    relative_residual: estimate,
-                    converged: estimate <= rtol,
-                };
+            if estimate <= rtol || lane.total >= lane.max_iterations || lane.breakdown {
+                let converged = estimate <= rtol;
+                let info =
+                    GmresInfo { iterations: lane.total, relative_residual: estimate, converged };
+                lane.done = Some(info);
+                return;
             }
             // Restart from the true residual.
             op(x, &mut self.w);
@@ -182,23 +298,39 @@ impl Gmres {
                     *r = bi - wi;
                 },
             );
-            beta = norm(&self.v[0]);
-            if beta <= rtol * bn {
-                return GmresInfo {
-                    iterations: total,
-                    relative_residual: beta / bn,
-                    converged: true,
-                };
+            lane.beta = norm(&self.v[0]);
+            let ratio = lane.beta / bn;
+            if lane.beta <= rtol * bn
+                || (self.stall_exit && stagnates(lane.beta / lane.cycle_start))
+            {
+                let converged = lane.beta <= rtol * bn;
+                let info =
+                    GmresInfo { iterations: lane.total, relative_residual: ratio, converged };
+                lane.done = Some(info);
+                return;
             }
-            if self.stall_exit && stagnates(beta / cycle_start) {
-                return GmresInfo {
-                    iterations: total,
-                    relative_residual: beta / bn,
-                    converged: false,
-                };
+            self.open_cycle(lane);
+            if self.inside_cycle(lane) {
+                return;
             }
         }
     }
+}
+
+/// Where one system of a solve stands (between iterations).
+#[derive(Debug, Clone, Copy)]
+struct Lane {
+    /// `‖b‖`, the residual norm the cycle started from, and the cycle's position.
+    bn: f64,
+    beta: f64,
+    cycle_start: f64,
+    k: usize,
+    total: usize,
+    breakdown: bool,
+    rtol: f64,
+    max_iterations: usize,
+    /// The outcome, once ended.
+    done: Option<GmresInfo>,
 }
 
 /// Whether a restart cycle that reduced the residual by the factor `ratio` has stalled:
@@ -326,6 +458,57 @@ mod tests {
         let info = g.solve(&mut op, &mut id, &b, &mut x, 1e-6, 200);
         assert!(!info.converged && info.iterations == 10, "{info:?}");
         assert!((info.relative_residual - 1.0).abs() < 1e-12, "{info:?}");
+    }
+
+    /// A batch in lockstep gives each system what its own solve gives, bit for bit: the
+    /// iterates, the iteration count and the residual, for systems that end at different
+    /// iterations (one of them zero, ended before the first) and across restarts.
+    #[test]
+    fn a_batch_gives_each_system_its_own_solve() {
+        let n = 120;
+        let mut op = |x: &[Vector3<f64>], y: &mut [Vector3<f64>]| {
+            for i in 0..x.len() {
+                let left = if i > 0 { x[i - 1] } else { Vector3::zeros() };
+                y[i] = x[i] * (3.0 + (i % 5) as f64) - left * 1.2 + Vector3::new(x[i].y, 0.0, 0.0);
+            }
+        };
+        let diag = |i: usize| 1.0 / (3.0 + (i % 5) as f64);
+        let jacobi = |r: &[Vector3<f64>], z: &mut [Vector3<f64>]| {
+            z.iter_mut().zip(r).enumerate().for_each(|(i, (z, r))| *z = r * diag(i));
+        };
+        let bs: [Vec<Vector3<f64>>; 3] = [
+            (0..n).map(|i| Vector3::new(1.0, (i as f64).cos(), 0.0)).collect(),
+            vec![Vector3::zeros(); n],
+            (0..n).map(|i| Vector3::new(0.0, 0.0, if i % 9 == 0 { 5.0 } else { 0.1 })).collect(),
+        ];
+        let tol = (1e-9, 400);
+        let mut single = Vec::new();
+        for b in &bs {
+            let mut x = vec![Vector3::zeros(); n];
+            let mut prec = jacobi;
+            let info = Gmres::new(n, 6).solve(&mut op, &mut prec, b, &mut x, tol.0, tol.1);
+            single.push((x, info));
+        }
+        let mut gs = std::array::from_fn(|_| Gmres::new(n, 6));
+        let mut xs: [Vec<Vector3<f64>>; 3] = std::array::from_fn(|_| vec![Vector3::zeros(); n]);
+        let mut calls = 0;
+        let mut prec = |r: [&[Vector3<f64>]; 3], z: [&mut [Vector3<f64>]; 3]| {
+            calls += 1;
+            r.into_iter().zip(z).for_each(|(r, z)| jacobi(r, z));
+        };
+        let b = bs.each_ref().map(|v| &v[..]);
+        let x = xs.each_mut().map(|v| &mut v[..]);
+        let infos = Gmres::solve_batch(&mut gs, &mut op, &mut prec, b, x, tol);
+        let most = single.iter().map(|s| s.1.iterations).max().unwrap();
+        assert_eq!(calls, most, "one batched preconditioning per lockstep iteration");
+        for (j, (x, info)) in single.iter().enumerate() {
+            assert_eq!(xs[j], *x, "system {j}");
+            assert_eq!(infos[j].iterations, info.iterations, "system {j}");
+            assert_eq!(infos[j].relative_residual, info.relative_residual, "system {j}");
+            assert!(info.converged, "system {j}: {info:?}");
+        }
+        assert_eq!(infos[1].iterations, 0, "a zero right-hand side needs no iteration");
+        assert!(infos[0].iterations > 6 && infos[0].iterations != infos[2].iterations);
     }
 
     #[test]

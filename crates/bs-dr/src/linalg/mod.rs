@@ -1,6 +1,6 @@
 //! Linear algebra on nodal vectors (`[Vector3<f64>]`, one entry per mesh node): the
 //! deterministic vector kernels and sparse matrices ([`sparse`]), the two-part matrix of
-//! `K₀` ([`nodal`]), restarted GMRES ([`krylov`]) and the multilevel preconditioner
+//! `K₀` ([`nodal`]), restarted GMRES, one system or a batch in lockstep ([`krylov`]) and the multilevel preconditioner
 //! ([`multilevel`]: parameters, nodal projector, aggregates, products, levels, setup,
 //! rebuild and cycle).
 //!
