@@ -80,6 +80,40 @@ pub(crate) struct Linearisation<'a> {
     pub stall_exit: bool,
 }
 
+/// `out = Π J v` at the linearisation point, `J` the forward difference of the forces
+/// (`umax` the largest displacement component of `lin.u`; `up` a buffer of the model's
+/// length). A direction that inverts an element within the difference step is treated as
+/// infinitely stiff (`out = 10³⁰ v`: a Krylov method then leaves it alone).
+pub(crate) fn tangent_product(
+    lin: &Linearisation<'_>,
+    umax: f64,
+    (up, ws): (&mut [Vector3<f64>], &mut Workspace),
+    work: &mut Work,
+    v: &[Vector3<f64>],
+    out: &mut [Vector3<f64>],
+) {
+    let (u, f) = (lin.u, lin.f);
+    let vmax = max_abs(v);
+    if vmax == 0.0 {
+        out.iter_mut().for_each(|o| *o = Vector3::zeros());
+        return;
+    }
+    let h = 1e-7 * (1.0 + umax) / vmax;
+    up.par_iter_mut().zip(u.par_iter()).zip(v.par_iter()).for_each(|((w, a), d)| {
+        *w = a + d * h;
+    });
+    match forces(lin.model, (lin.data, lin.dead), up, ws, out, work) {
+        Ok(()) => {
+            out.par_iter_mut().zip(f.par_iter()).for_each(|(o, f0)| *o = (*o - f0) / h);
+            for &(a, k) in lin.springs {
+                out[a] += v[a] * k;
+            }
+            lin.cons.projector.apply(out);
+        }
+        Err(_) => out.iter_mut().zip(v).for_each(|(o, vi)| *o = vi * 1e30),
+    }
+}
+
 /// Solves for `delta` to the relative residual `rtol` (at most `max_iterations` GMRES
 /// iterations); `Err` when the particular displacement itself inverts an element within the
 /// difference step.
@@ -115,27 +149,7 @@ pub(crate) fn solve(
     pi.apply(&mut b.rhs);
     let up = &mut b.up;
     let mut op = |v: &[Vector3<f64>], out: &mut [Vector3<f64>]| {
-        let vmax = max_abs(v);
-        if vmax == 0.0 {
-            out.iter_mut().for_each(|o| *o = Vector3::zeros());
-            return;
-        }
-        let h = 1e-7 * (1.0 + umax) / vmax;
-        up.par_iter_mut().zip(u.par_iter()).zip(v.par_iter()).for_each(|((w, a), d)| {
-            *w = a + d * h;
-        });
-        match forces(model, data, up, ws, out, work) {
-            Ok(()) => {
-                out.par_iter_mut().zip(f.par_iter()).for_each(|(o, f0)| *o = (*o - f0) / h);
-                for &(a, k) in lin.springs {
-                    out[a] += v[a] * k;
-                }
-                pi.apply(out);
-            }
-            // A direction that inverts an element within h: treat as infinitely stiff
-            // (GMRES then leaves it alone).
-            Err(_) => out.iter_mut().zip(v).for_each(|(o, vi)| *o = vi * 1e30),
-        }
+        tangent_product(lin, umax, (up, &mut *ws), work, v, out);
     };
     let mut prec_time = Duration::ZERO;
     let (tl, cons, scratch) = (lin.tl, lin.cons, &mut b.tl);

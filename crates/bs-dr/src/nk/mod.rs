@@ -95,7 +95,7 @@ use crate::solver::{Breakdown, LoadFailure, Progress, Solution, SolveError, Solv
 
 pub use self::outcome::{NewtonKrylovError, NewtonKrylovInfo};
 pub use self::params::{ContinuationParams, LineSearchParams, NewtonKrylovParams};
-pub use self::response::{Response, ResponseInfo};
+pub use self::response::{BATCH, Response, ResponseInfo};
 
 /// The semismooth Newton–Krylov solver (see the module documentation).
 #[derive(Debug, Clone, Copy, Default)]

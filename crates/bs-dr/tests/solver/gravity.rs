@@ -159,13 +159,34 @@ fn the_linear_response_to_more_weight_is_the_difference_of_two_solves() {
         // The residual is internal minus dead forces: 1 % more weight lowers it by 1 % of them.
         let change: Vec<Vector3<f64>> = loads.forces().iter().map(|f| -f * 0.01).collect();
         let mut response = vec![Vector3::zeros(); u.len()];
-        let info = nk
+        // Five changes through the batched path (a batch of four and one alone): the same
+        // change gives the same response bit for bit, a scaled one the scaled response (to
+        // 1e-6 of it: the tangent product is a force difference whose step follows the
+        // vector's size, good to √ε ≈ 1.5e-8 of it before the conditioning), and no change
+        // none.
+        let scales = [1.0, 2.0, 0.0, -0.5, 1.0];
+        let changes: Vec<Vec<Vector3<f64>>> =
+            scales.iter().map(|s| change.iter().map(|c| c * *s).collect()).collect();
+        let mut many = vec![vec![Vector3::zeros(); u.len()]; scales.len()];
+        let (info, infos) = nk
             .with_response(&model, &loads, &prep, &u, &mut NoContact, &mut bs_dr::NoData, |r| {
-                r.solve(&change, &mut response, 1e-10)
+                let one = r.solve(&change, &mut response, 1e-10)?;
+                Ok::<_, bs_dr::nk::NewtonKrylovError>((
+                    one,
+                    r.solve_all(&changes, &mut many, 1e-10)?,
+                ))
             })
             .unwrap()
             .unwrap();
         assert!(info.converged, "{tech:?}: {info:?}");
+        assert_eq!(many[0], response, "{tech:?}: the batch's first response");
+        assert_eq!(many[4], response, "{tech:?}: the lone fifth response");
+        let size = response.iter().fold(0.0f64, |m, v| m.max(v.amax()));
+        for (s, m) in scales.iter().zip(&many) {
+            let off = m.iter().zip(&response).fold(0.0f64, |a, (m, r)| a.max((m - r * *s).amax()));
+            assert!(off <= 1e-6 * size * s.abs(), "{tech:?}: ×{s} off by {off:e} of {size:e}");
+        }
+        assert!(infos.iter().all(|i| i.converged), "{tech:?}: {infos:?}");
         let scale = response.iter().fold(0.0f64, |m, v| m.max(v.amax()));
         let diff = response
             .iter()
