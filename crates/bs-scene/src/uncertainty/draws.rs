@@ -62,7 +62,7 @@ impl<'a> Draws<'a> {
                 .collect()
         });
         let mut draws = Draws { p, fits, rigid, positions, u, base: Vec::new(), gravity: None };
-        draws.base = draws.data_forces(&draws.fits.clone(), model.reference());
+        draws.base = draws.data_forces(&mut refreshed(&draws.fits), model.reference());
         if let Some(g) = gravity.filter(|g| !g.theta.is_empty()) {
             let n = g.theta.len();
             let cov = DMatrix::from_fn(n, n, |i, j| g.covariance[i][j]);
@@ -93,18 +93,11 @@ impl<'a> Draws<'a> {
         parts
     }
 
-    /// The data springs' forces of `fits` at the answer, planes found afresh.
-    fn data_forces(&self, fits: &Fits, reference: &[Point3<f64>]) -> Vec<Vector3<f64>> {
+    /// The data springs' forces of `fits` at the answer.
+    fn data_forces(&self, fits: &mut Fits, reference: &[Point3<f64>]) -> Vec<Vector3<f64>> {
         let mut f = vec![Vector3::zeros(); self.u.len()];
         if fits.terms.is_empty() {
             return f;
-        }
-        let mut fits = fits.clone();
-        for t in &mut fits.terms {
-            if let Term::Surface(s) = t {
-                let points = s.points().to_vec();
-                s.set_points(points);
-            }
         }
         let mut springs = Springs::new();
         fits.linearise(&self.positions, &mut springs);
@@ -137,7 +130,7 @@ impl<'a> Draws<'a> {
                 .collect();
             s.set_points(moved);
         }
-        let f = self.data_forces(&noisy, model.reference());
+        let f = self.data_forces(&mut noisy, model.reference());
         out.iter_mut().zip(f.iter().zip(&self.base)).for_each(|(o, (a, b))| *o = a - b);
         if let Some(GravityDraw { report: g, factor, body }) = &self.gravity {
             let z =
@@ -151,6 +144,19 @@ impl<'a> Draws<'a> {
         }
         Ok(())
     }
+}
+
+/// `fits` with every scan's points set again, their planes and densities found afresh as a
+/// draw's are (so that the base forces and a draw's differ by the noise alone).
+fn refreshed(fits: &Fits) -> Fits {
+    let mut fits = fits.clone();
+    for t in &mut fits.terms {
+        if let Term::Surface(s) = t {
+            let points = s.points().to_vec();
+            s.set_points(points);
+        }
+    }
+    fits
 }
 
 /// A standard normal vector.

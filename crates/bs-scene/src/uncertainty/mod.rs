@@ -196,7 +196,9 @@ pub fn sample(
     let mut m2 = vec![Vector3::<f64>::zeros(); n];
     let mut l2 = vec![Vector3::<f64>::zeros(); anchors.len()];
     let mut rng = SplitMix64::new(params.seed);
-    let (mut change, mut du) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]);
+    let batch = bs_dr::nk::BATCH.min(params.samples);
+    let (mut changes, mut dus) = (vec![vec![Vector3::zeros(); n]; batch], vec![vec![]; batch]);
+    dus.iter_mut().for_each(|d| *d = vec![Vector3::zeros(); n]);
     let mut data = c.fit.as_ref().filter(|_| data_used).map(|f| f.fits.clone());
     let mut none = bs_dr::NoData;
     let data: &mut dyn bs_dr::DataTerm = match &mut data {
@@ -213,15 +215,23 @@ pub fn sample(
     let model = &c.model;
     let iterations = nk
         .with_response(model, &c.loads, prep, u, contact, data, |r| {
-            for _ in 0..params.samples {
-                draws.residual_change(model, &mut rng, &mut change)?;
-                r.solve(&change, &mut du, params.rtol).map_err(bs_dr::SolveError::from)?;
-                m2.iter_mut().zip(&du).for_each(|(m, d)| *m += d.component_mul(d));
-                for (l, a) in l2.iter_mut().zip(&anchors) {
-                    let d: Vector3<f64> =
-                        a.nodes.iter().zip(&a.weights).map(|(&k, &w)| du[k] * w).sum();
-                    *l += d.component_mul(&d);
+            let mut left = params.samples;
+            while left > 0 {
+                let m = left.min(batch);
+                for change in &mut changes[..m] {
+                    draws.residual_change(model, &mut rng, change)?;
                 }
+                r.solve_all(&changes[..m], &mut dus[..m], params.rtol)
+                    .map_err(bs_dr::SolveError::from)?;
+                for du in &dus[..m] {
+                    m2.iter_mut().zip(du).for_each(|(m, d)| *m += d.component_mul(d));
+                    for (l, a) in l2.iter_mut().zip(&anchors) {
+                        let d: Vector3<f64> =
+                            a.nodes.iter().zip(&a.weights).map(|(&k, &w)| du[k] * w).sum();
+                        *l += d.component_mul(&d);
+                    }
+                }
+                left -= m;
             }
             Ok::<usize, SceneError>(r.gmres_iterations())
         })
