@@ -53,6 +53,7 @@ pub fn run(out: &Path, from_image: bool) -> Result<ExitCode, Box<dyn std::error:
         quiet: false,
         uncertainty: None,
         uncertainty_grid: None,
+        uncertainty_tolerance: None,
     })?;
     if code != ExitCode::SUCCESS {
         return Ok(code);

@@ -27,6 +27,8 @@ pub struct RunOptions {
     pub uncertainty: Option<usize>,
     /// The grid of uncertainty.nii.gz (an image; `None`: around the deformed brain).
     pub uncertainty_grid: Option<PathBuf>,
+    /// GMRES's relative residual per sample (`None`: the default, 1e-2).
+    pub uncertainty_tolerance: Option<f64>,
 }
 
 /// `--uncertainty N`: a whole number of samples, at least 2.
@@ -38,6 +40,18 @@ pub fn parse_samples(s: &str) -> Result<usize, String> {
              it to about 13 %)"
         )),
         Err(_) => Err(format!("'{s}' is not a whole number of samples (e.g. 32)")),
+    }
+}
+
+/// `--uncertainty-tolerance R`: a relative residual between 0 and 1.
+pub fn parse_tolerance(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(r) if r > 0.0 && r < 1.0 => Ok(r),
+        Ok(r) => Err(format!(
+            "{r}: give a relative residual between 0 and 1 (1e-2 by default; 1e-3 for σ \
+             within about 1 % of its converged value)"
+        )),
+        Err(_) => Err(format!("'{s}' is not a number (e.g. 1e-3)")),
     }
 }
 
@@ -191,7 +205,8 @@ pub fn run(opts: &RunOptions) -> Result<ExitCode, Box<dyn std::error::Error>> {
     let sigma_image = match opts.uncertainty {
         Some(n) => {
             let to = (opts.out.as_path(), opts.uncertainty_grid.as_deref(), opts.quiet);
-            Some(crate::uncertainty::sample(&mut run, &mut solved, n, to)?)
+            let how = (n, opts.uncertainty_tolerance);
+            Some(crate::uncertainty::sample(&mut run, &mut solved, how, to)?)
         }
         None => None,
     };

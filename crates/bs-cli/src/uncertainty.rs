@@ -17,7 +17,7 @@ pub const UNCERTAINTY_NII: &str = "uncertainty.nii.gz";
 pub fn sample(
     run: &mut Run,
     solved: &mut Solved,
-    samples: usize,
+    (samples, rtol): (usize, Option<f64>),
     (out, grid, quiet): (&Path, Option<&Path>, bool),
 ) -> Result<NodalImage, SceneError> {
     if !quiet {
@@ -25,7 +25,8 @@ pub fn sample(
             "uncertainty: {samples} samples of the data's noise through the converged tangent…"
         );
     }
-    let params = UncertaintyParams { samples, ..UncertaintyParams::default() };
+    let defaults = UncertaintyParams::default();
+    let params = UncertaintyParams { samples, rtol: rtol.unwrap_or(defaults.rtol), ..defaults };
     let u = bs_scene::uncertainty::sample(run, solved, &params)?;
     let p = &run.prepared;
     let mm = p.scene.units.metres() / 1e-3;

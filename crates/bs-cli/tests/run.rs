@@ -386,12 +386,18 @@ fn the_uncertainty_of_the_fitted_fixture_is_written_three_ways() {
     let err = String::from_utf8_lossy(&refused.stderr);
     assert!(err.contains("1 samples: give at least 2"), "{err}");
     assert!(!out.exists(), "nothing may be written");
+    let loose = ["run", s, "--out", o, "--uncertainty", "8", "--uncertainty-tolerance", "1.5"];
+    let refused = brainshift(&loose);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(err.contains("relative residual between 0 and 1"), "{err}");
+    assert!(!out.exists(), "nothing may be written");
     let ran = brainshift(&["run", s, "--out", o, "--uncertainty", "8", "--quiet"]);
     assert!(ran.status.success(), "{}", String::from_utf8_lossy(&ran.stderr));
     let report: Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     let u = &report["uncertainty"];
     assert_eq!(u["samples"], 8);
+    assert_eq!(u["tolerance"], 1e-2, "the default relative residual, recorded");
     let csv = std::fs::read_to_string(out.join("uncertainty.csv")).unwrap();
     let mut lines = csv.lines();
     assert_eq!(lines.next(), Some("node_id,sx,sy,sz,s"));

@@ -954,6 +954,11 @@ fn the_sampled_sigma_is_the_spread_of_the_fit_over_fresh_scans() {
     let mut run = Run::prepare(Prepared::load(&path).unwrap()).unwrap();
     let solved = run.solve(&mut |_| {}).unwrap();
     let params = bs_scene::uncertainty::UncertaintyParams { samples: 64, ..Default::default() };
+    for rtol in [0.0, 1.0, f64::NAN] {
+        let bad = bs_scene::uncertainty::UncertaintyParams { rtol, ..params };
+        let e = bs_scene::uncertainty::sample(&mut run, &solved, &bad).unwrap_err().to_string();
+        assert!(e.contains("relative residual between 0 and 1"), "{rtol}: {e}");
+    }
     let u = bs_scene::uncertainty::sample(&mut run, &solved, &params).unwrap();
     assert_eq!(u.parts, ["scan noise"]);
     let top: Vec<usize> = run.prepared.mesh.node_sets["ZMAX"].clone();

@@ -16,6 +16,8 @@ pub struct Uncertainty {
     /// GMRES iterations of all responses, and the wall time of the sampling (seconds).
     pub iterations: usize,
     pub seconds: f64,
+    /// GMRES's relative residual per sample.
+    pub tolerance: f64,
 }
 
 impl Uncertainty {
