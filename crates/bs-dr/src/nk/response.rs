@@ -9,7 +9,8 @@
 //! once, for any number of responses (an uncertainty's samples). Many responses at once
 //! ([`Response::solve_all`]) go through GMRES in batches of [`BATCH`] in lockstep: the
 //! multilevel cycle then reads its matrices once for the batch, which is most of a cycle's
-//! cost.
+//! cost. [`Response::refine_all`] carries responses solved loosely on to a tighter
+//! tolerance from where they stopped.
 
 use std::time::{Duration, Instant};
 
@@ -23,9 +24,9 @@ use super::problem::Context;
 use super::{NewtonKrylov, Preparation};
 use crate::contact::Contact;
 use crate::data::DataTerm;
-use crate::linalg::krylov::{Gmres, GmresInfo};
+use crate::linalg::krylov::{Gmres, GmresInfo, NodalMap};
 use crate::linalg::multilevel::MultilevelBatchScratch;
-use crate::linalg::sparse::max_abs;
+use crate::linalg::sparse::{max_abs, norm};
 use crate::loads::Loads;
 use crate::model::Model;
 
@@ -130,12 +131,51 @@ impl Response<'_, '_> {
             let pairs = changes.iter().zip(outs.iter_mut());
             return pairs.map(|(c, o)| self.solve(c, o, rtol)).collect();
         }
+        self.batches(changes, outs, rtol, false)
+    }
+
+    /// The responses `outs` of [`solve_all`](Self::solve_all) at a looser tolerance carried
+    /// on to `rtol`, each from where it is: the correction solves the residual left, to the
+    /// relative residual that makes the whole `rtol` of its change's. A response already
+    /// there is left as it is (no iterations).
+    pub fn refine_all(
+        &mut self,
+        changes: &[Vec<Vector3<f64>>],
+        outs: &mut [Vec<Vector3<f64>>],
+        rtol: f64,
+    ) -> Result<Vec<ResponseInfo>, NewtonKrylovError> {
+        let n = self.it.u.len();
+        if changes.len() != outs.len() || changes.iter().chain(outs.iter()).any(|v| v.len() != n) {
+            return Err(NewtonKrylovError::Unsupported {
+                what: "residual changes and responses of other counts or lengths",
+                fix: "give one response buffer per change, each one vector per node",
+            });
+        }
+        if self.it.pre.get().split().is_some() {
+            return Err(NewtonKrylovError::Unsupported {
+                what: "refining responses of a model solved in the mixed form",
+                fix: "solve the responses at the tolerance wanted with `solve_all`",
+            });
+        }
+        self.batches(changes, outs, rtol, true)
+    }
+
+    /// [`solve_all`](Self::solve_all) (`warm`: [`refine_all`](Self::refine_all)) batch by
+    /// batch.
+    fn batches(
+        &mut self,
+        changes: &[Vec<Vector3<f64>>],
+        outs: &mut [Vec<Vector3<f64>>],
+        rtol: f64,
+        warm: bool,
+    ) -> Result<Vec<ResponseInfo>, NewtonKrylovError> {
         let mut infos = Vec::with_capacity(changes.len());
         for (cs, os) in changes.chunks(BATCH).zip(outs.chunks_mut(BATCH)) {
-            let info = self.batch(cs, rtol);
+            let info = self.batch(cs, warm.then_some(&*os), rtol);
+            let x = &self.batch.as_ref().expect("made by the batch").x;
             for (j, o) in os.iter_mut().enumerate() {
                 let i = info[j];
-                o.copy_from_slice(&self.batch.as_ref().expect("made by the batch").x[j]);
+                o.copy_from_slice(&x[j]);
                 let (iterations, relative_residual) = (i.iterations, i.relative_residual);
                 infos.push(ResponseInfo { iterations, relative_residual, converged: i.converged });
             }
@@ -144,8 +184,15 @@ impl Response<'_, '_> {
     }
 
     /// GMRES in lockstep on at most [`BATCH`] changes `cs` (the rest of the batch zero), the
-    /// responses left in the batch's `x`.
-    fn batch(&mut self, cs: &[Vec<Vector3<f64>>], rtol: f64) -> [GmresInfo; BATCH] {
+    /// responses left in the batch's `x`; from the responses `warm` when given (each to the
+    /// relative residual `rtol` of its change's, the lane's reported residual relative to
+    /// the residual it started from).
+    fn batch(
+        &mut self,
+        cs: &[Vec<Vector3<f64>>],
+        warm: Option<&[Vec<Vector3<f64>>]>,
+        rtol: f64,
+    ) -> [GmresInfo; BATCH] {
         let Response { pb, it, work, batch } = self;
         let n = it.u.len();
         let b = batch.get_or_insert_with(|| {
@@ -155,13 +202,6 @@ impl Response<'_, '_> {
             let cycle = it.pre.get().batch_scratch();
             Box::new(Batch { rhs: v(), x: v(), gmres, cycle })
         });
-        for (j, rhs) in b.rhs.iter_mut().enumerate() {
-            match cs.get(j) {
-                Some(c) => rhs.iter_mut().zip(c).for_each(|(r, d)| *r = -d),
-                None => rhs.iter_mut().for_each(|r| *r = Vector3::zeros()),
-            }
-            it.cons.projector.apply(rhs);
-        }
         let lin = Linearisation {
             model: pb.model,
             data: &it.data,
@@ -181,6 +221,17 @@ impl Response<'_, '_> {
         let mut op = |v: &[Vector3<f64>], out: &mut [Vector3<f64>]| {
             tangent_product(&lin, umax, (up, &mut *ws), &mut products, v, out);
         };
+        let mut rtols = [rtol; BATCH];
+        for (j, rhs) in b.rhs.iter_mut().enumerate() {
+            match cs.get(j) {
+                Some(c) => rhs.iter_mut().zip(c).for_each(|(r, d)| *r = -d),
+                None => rhs.iter_mut().for_each(|r| *r = Vector3::zeros()),
+            }
+            lin.cons.projector.apply(rhs);
+            if let Some(x0) = warm.and_then(|w| w.get(j)) {
+                rtols[j] = left_to_solve(rhs, x0, &mut b.x[j], &mut op, rtol);
+            }
+        }
         let mut prec_time = Duration::ZERO;
         let (tl, cons, cycle) = (lin.tl, lin.cons, &mut b.cycle);
         let mut prec = |r: [&[Vector3<f64>]; BATCH], z: [&mut [Vector3<f64>]; BATCH]| {
@@ -191,13 +242,16 @@ impl Response<'_, '_> {
         let rhs = b.rhs.each_ref().map(|v| &v[..]);
         let x = b.x.each_mut().map(|v| &mut v[..]);
         let max = pb.params.max_linear_iterations;
-        let info = Gmres::solve_batch(&mut b.gmres, &mut op, &mut prec, rhs, x, (rtol, max));
+        let info = Gmres::solve_batch(&mut b.gmres, &mut op, &mut prec, rhs, x, (rtols, max));
         work.forces += products.forces;
         work.time.forces += products.time.forces;
         work.time.preconditioner += prec_time;
         work.linear += info.iter().map(|i| i.iterations).sum::<usize>();
-        for x in &mut b.x {
+        for (j, x) in b.x.iter_mut().enumerate() {
             it.cons.projector.apply(x);
+            if let Some(x0) = warm.and_then(|w| w.get(j)) {
+                x.iter_mut().zip(x0).for_each(|(x, a)| *x += a);
+            }
         }
         info
     }
@@ -206,6 +260,27 @@ impl Response<'_, '_> {
     pub fn gmres_iterations(&self) -> usize {
         self.work.linear
     }
+}
+
+/// The residual `b − A x0` into `b` (`t` a buffer), and the relative residual its
+/// correction must reach for `x0` plus it to have `rtol` of `b`'s; the residual zeroed (no
+/// correction) where `x0` already has it.
+fn left_to_solve(
+    b: &mut [Vector3<f64>],
+    x0: &[Vector3<f64>],
+    t: &mut [Vector3<f64>],
+    op: &mut NodalMap<'_>,
+    rtol: f64,
+) -> f64 {
+    let target = rtol * norm(b);
+    op(x0, t);
+    b.iter_mut().zip(t.iter()).for_each(|(b, t)| *b -= t);
+    let left = norm(b);
+    if left <= target {
+        b.iter_mut().for_each(|b| *b = Vector3::zeros());
+        return rtol;
+    }
+    target / left
 }
 
 impl NewtonKrylov {

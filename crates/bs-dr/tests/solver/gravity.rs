@@ -168,16 +168,25 @@ fn the_linear_response_to_more_weight_is_the_difference_of_two_solves() {
         let changes: Vec<Vec<Vector3<f64>>> =
             scales.iter().map(|s| change.iter().map(|c| c * *s).collect()).collect();
         let mut many = vec![vec![Vector3::zeros(); u.len()]; scales.len()];
-        let (info, infos) = nk
+        // Loose responses carried on to 1e-10 from where they stopped, and one already there
+        // left alone.
+        let mut loose = vec![vec![Vector3::zeros(); u.len()]; 2];
+        let (info, infos, refined, kept) = nk
             .with_response(&model, &loads, &prep, &u, &mut NoContact, &mut bs_dr::NoData, |r| {
                 let one = r.solve(&change, &mut response, 1e-10)?;
-                Ok::<_, bs_dr::nk::NewtonKrylovError>((
-                    one,
-                    r.solve_all(&changes, &mut many, 1e-10)?,
-                ))
+                let all = r.solve_all(&changes, &mut many, 1e-10)?;
+                let pair = [change.clone(), changes[3].clone()];
+                r.solve_all(&pair, &mut loose, 1e-2)?;
+                let refined = r.refine_all(&pair, &mut loose, 1e-10)?;
+                let before = loose[0].clone();
+                let kept = r.refine_all(&pair[..1], &mut loose[..1], 0.5)?;
+                assert_eq!(loose[0], before, "a response already within 0.5 is left alone");
+                Ok::<_, bs_dr::nk::NewtonKrylovError>((one, all, refined, kept))
             })
             .unwrap()
             .unwrap();
+        assert!(refined.iter().all(|i| i.converged && i.iterations > 0), "{refined:?}");
+        assert_eq!(kept[0].iterations, 0, "{kept:?}");
         assert!(info.converged, "{tech:?}: {info:?}");
         assert_eq!(many[0], response, "{tech:?}: the batch's first response");
         assert_eq!(many[4], response, "{tech:?}: the lone fifth response");
@@ -187,6 +196,11 @@ fn the_linear_response_to_more_weight_is_the_difference_of_two_solves() {
             assert!(off <= 1e-6 * size * s.abs(), "{tech:?}: ×{s} off by {off:e} of {size:e}");
         }
         assert!(infos.iter().all(|i| i.converged), "{tech:?}: {infos:?}");
+        // Refined to the direct solves' 1e-10: the same responses to the solves' accuracy.
+        for (l, s) in loose.iter().zip([1.0, -0.5]) {
+            let off = l.iter().zip(&response).fold(0.0f64, |a, (l, r)| a.max((l - r * s).amax()));
+            assert!(off <= 1e-6 * size, "{tech:?}: refined ×{s} off by {off:e} of {size:e}");
+        }
         let scale = response.iter().fold(0.0f64, |m, v| m.max(v.amax()));
         let diff = response
             .iter()
