@@ -56,7 +56,8 @@
 //! * `estimate/`: `[gravity] estimate`'s unknowns from a scan: `mod.rs` (probes, Broyden,
 //!   line search), `params.rs` (the unknowns), `residuals.rs`, `gauss_newton.rs`;
 //! * `uncertainty/`: `mod.rs` (the sampling), `draws.rs` (one sample's change),
-//!   `sigma.rs` (σ per node and landmark), `held_out.rs` (held-out landmarks);
+//!   `sigma.rs` (σ per node and landmark), `held_out.rs` (held-out landmarks),
+//!   `truncation.rs` (the scale for the solves' loose stop);
 //! * `resection.rs`: resected regions removed, cavity walls found, orphan nodes held;
 //! * `gravity.rs`: `[gravity]` as bs-dr's `BodyForce` in the model's units;
 //! * `compose.rs`: `Composed`, `compose`, `compose_with`: the model, loads and contact;

@@ -7,7 +7,8 @@
 //! equations through the converged tangent (one GMRES solve each, bs-dr's
 //! [`bs_dr::Response`]): the sample's deviation of the answer. The per-axis σ is the root
 //! mean square of the deviations; its relative error is about `1/√(2N)` for `N` samples
-//! (13 % at 32), whatever the correlation between nodes.
+//! (13 % at 32), whatever the correlation between nodes. The solves stop loosely; what that
+//! leaves out is measured on the first batch and scaled back ([`truncation`]).
 //!
 //! What it captures: the data's noise and the load parameters the data left uncertain,
 //! through the model as fitted. What it cannot: the model's own error (a wrong
@@ -17,6 +18,7 @@
 mod draws;
 pub mod held_out;
 pub mod sigma;
+pub mod truncation;
 
 use std::time::Instant;
 
@@ -38,11 +40,17 @@ pub struct UncertaintyParams {
     pub samples: usize,
     /// The seed of the draws (the same seed gives the same σ).
     pub seed: u64,
-    /// GMRES's relative residual per response, in (0, 1). A looser solve biases σ low:
-    /// at 1e-2, σ is 3 % below its converged value on fixtures/fit and 17 % below on
-    /// fixtures/fit-gravity (mean over the nodes); 1e-3 brings both within 1.2 % at
-    /// 1.7–1.9× the time (docs/uncertainty.md, "The solves' tolerance").
+    /// GMRES's relative residual per response, in (0, 1). A looser solve biases σ low (at
+    /// 1e-2 by 3 % on fixtures/fit and 17 % on fixtures/fit-gravity, mean over the nodes),
+    /// so above [`truncation::REFINED`] the first batch is refined to it and σ scaled by
+    /// what that adds (then within 2–4 % on both); at 1e-3 both are within 1.2 %
+    /// unscaled, at 1.7–1.9× the time (docs/uncertainty.md, "The solves' tolerance").
     pub rtol: f64,
+}
+
+/// The tolerance scale of reports written before they carried it.
+fn one() -> f64 {
+    1.0
 }
 
 /// The relative residual of reports written before they carried it.
@@ -66,6 +74,11 @@ pub struct UncertaintyReport {
     /// GMRES's relative residual per sample ([`UncertaintyParams::rtol`]).
     #[serde(default = "default_rtol")]
     pub tolerance: f64,
+    /// The factor every σ here is scaled by for the solves' stop at `tolerance`: the first
+    /// batch refined to [`truncation::REFINED`], the root of its energy ratio (1 when the
+    /// tolerance is that tight; docs/uncertainty.md, "The solves' tolerance").
+    #[serde(default = "one")]
+    pub tolerance_scale: f64,
     /// What the samples drew: `scan noise`, `rigid correction from the bone points' noise`,
     /// `gravity's estimated parameters`; and `the scale from N held-out landmarks` when
     /// they scaled it (`held_out`). The model's own error is not drawn.
@@ -118,6 +131,7 @@ impl UncertaintyReport {
             iterations: u.iterations,
             seconds: u.seconds,
             tolerance: u.tolerance,
+            tolerance_scale: u.tolerance_scale,
             parts: u.parts.clone(),
             max_sigma,
             max_node: mesh.node_ids.get(max_node).copied().unwrap_or(max_node as u64 + 1),
@@ -233,9 +247,9 @@ pub fn sample(
     let prep = c.preparation.as_ref().expect("prepared above");
     let nk = crate::solve::newton_krylov(&settings);
     let model = &c.model;
-    let iterations = nk
+    let (iterations, truncation) = nk
         .with_response(model, &c.loads, prep, u, contact, data, |r| {
-            let mut left = params.samples;
+            let (mut left, mut truncation) = (params.samples, None);
             while left > 0 {
                 let m = left.min(batch);
                 for change in &mut changes[..m] {
@@ -251,11 +265,16 @@ pub fn sample(
                         *l += d.component_mul(&d);
                     }
                 }
+                if truncation.is_none() {
+                    let s = truncation::scale(r, &changes[..m], &mut dus[..m], params.rtol);
+                    truncation = Some(s.map_err(bs_dr::SolveError::from)?);
+                }
                 left -= m;
             }
-            Ok::<usize, SceneError>(r.gmres_iterations())
+            Ok::<_, SceneError>((r.gmres_iterations(), truncation.unwrap_or(1.0)))
         })
         .map_err(bs_dr::SolveError::from)??;
+    m2.iter_mut().chain(l2.iter_mut()).for_each(|v| *v *= truncation);
     let samples = params.samples as f64;
     let held_out = held_out.map(|h| {
         let var: Vec<Vector3<f64>> = l2[scene_landmarks..].iter().map(|v| v / samples).collect();
@@ -279,6 +298,7 @@ pub fn sample(
         iterations,
         seconds: started.elapsed().as_secs_f64(),
         tolerance: params.rtol,
+        tolerance_scale: truncation.sqrt(),
     })
 }
 

@@ -16,8 +16,10 @@ pub struct Uncertainty {
     /// GMRES iterations of all responses, and the wall time of the sampling (seconds).
     pub iterations: usize,
     pub seconds: f64,
-    /// GMRES's relative residual per sample.
+    /// GMRES's relative residual per sample, and the factor on σ for that stop (see
+    /// [`super::truncation`]).
     pub tolerance: f64,
+    pub tolerance_scale: f64,
 }
 
 impl Uncertainty {
