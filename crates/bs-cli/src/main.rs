@@ -83,11 +83,11 @@ enum Command {
         /// brain.
         #[arg(long, value_name = "IMAGE", requires = "uncertainty")]
         uncertainty_grid: Option<PathBuf>,
-        /// With --uncertainty: GMRES's relative residual per sample (default 1e-2). A looser
+        /// With --uncertainty: GMRES's relative residual per sample (default 1e-2). A loose
         /// solve makes σ smaller than it is (at 1e-2 by 3 % on fixtures/fit and 17 % on
         /// fixtures/fit-gravity), so above 1e-3 four samples are refined to 1e-3 and σ is
-        /// scaled by what that adds (then within 2–4 %); at 1e-3 σ is within 1.2 % unscaled,
-        /// at 1.7–1.9× the time.
+        /// scaled by what that adds (at the default, then within 2 % on both); at 1e-3 σ
+        /// is within 1.2 % unscaled, at 1.7–1.9× the time.
         #[arg(long, value_name = "R", requires = "uncertainty", value_parser = run::parse_tolerance)]
         uncertainty_tolerance: Option<f64>,
     },

@@ -1,8 +1,9 @@
 //! How much σ a loose stop of the samples' solves leaves out, measured on the samples
 //! themselves: GMRES stopped early misses part of each response's smooth component, so σ
-//! comes out short (17 % on fixtures/fit-gravity at the relative residual 1e-2,
-//! docs/uncertainty.md). The first batch's responses are carried on to [`REFINED`] from
-//! where they stopped, and the ratio of their energies after and before scales every σ².
+//! comes out short (17 % on fixtures/fit-gravity at the relative residual 1e-2, 35 % at
+//! 2e-2; docs/uncertainty.md). The first batch's responses are carried on to [`REFINED`]
+//! from where they stopped, and the ratio of their energies after and before scales every
+//! σ².
 
 use bs_dr::nk::{NewtonKrylovError, Response};
 use bs_mesh::Vector3;
