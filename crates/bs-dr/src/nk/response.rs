@@ -120,13 +120,7 @@ impl Response<'_, '_> {
         outs: &mut [Vec<Vector3<f64>>],
         rtol: f64,
     ) -> Result<Vec<ResponseInfo>, NewtonKrylovError> {
-        let n = self.it.u.len();
-        if changes.len() != outs.len() || changes.iter().chain(outs.iter()).any(|v| v.len() != n) {
-            return Err(NewtonKrylovError::Unsupported {
-                what: "residual changes and responses of other counts or lengths",
-                fix: "give one response buffer per change, each one vector per node",
-            });
-        }
+        matching(self.it.u.len(), changes, outs)?;
         if self.it.pre.get().split().is_some() {
             let pairs = changes.iter().zip(outs.iter_mut());
             return pairs.map(|(c, o)| self.solve(c, o, rtol)).collect();
@@ -144,13 +138,7 @@ impl Response<'_, '_> {
         outs: &mut [Vec<Vector3<f64>>],
         rtol: f64,
     ) -> Result<Vec<ResponseInfo>, NewtonKrylovError> {
-        let n = self.it.u.len();
-        if changes.len() != outs.len() || changes.iter().chain(outs.iter()).any(|v| v.len() != n) {
-            return Err(NewtonKrylovError::Unsupported {
-                what: "residual changes and responses of other counts or lengths",
-                fix: "give one response buffer per change, each one vector per node",
-            });
-        }
+        matching(self.it.u.len(), changes, outs)?;
         if self.it.pre.get().split().is_some() {
             return Err(NewtonKrylovError::Unsupported {
                 what: "refining responses of a model solved in the mixed form",
@@ -260,6 +248,21 @@ impl Response<'_, '_> {
     pub fn gmres_iterations(&self) -> usize {
         self.work.linear
     }
+}
+
+/// `Err` unless there is one response buffer per change, each of `n` nodes.
+fn matching(
+    n: usize,
+    changes: &[Vec<Vector3<f64>>],
+    outs: &[Vec<Vector3<f64>>],
+) -> Result<(), NewtonKrylovError> {
+    if changes.len() != outs.len() || changes.iter().chain(outs).any(|v| v.len() != n) {
+        return Err(NewtonKrylovError::Unsupported {
+            what: "residual changes and responses of other counts or lengths",
+            fix: "give one response buffer per change, each one vector per node",
+        });
+    }
+    Ok(())
 }
 
 /// The residual `b − A x0` into `b` (`t` a buffer), and the relative residual its

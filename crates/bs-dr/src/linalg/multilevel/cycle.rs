@@ -559,25 +559,11 @@ fn residual6_batch<const K: usize>(a: &Blocks<f32, 6, 6>, here: &mut [[Vec<V6>; 
 
 /// `y_j = A x_j` on a coarse level for `K` vectors, each block read and widened once.
 fn multiply6_batch<const K: usize>(a: &Blocks<f32, 6, 6>, x: [&[V6]; K], y: [&mut [V6]; K]) {
-    let tasks = batch_chunks(y, COARSE_ROWS);
-    tasks.into_par_iter().enumerate().for_each(|(t, ys)| {
-        for k in 0..ys[0].len() {
-            let (cols, vals) = a.row(t * COARSE_ROWS + k);
-            let mut acc = [V6::zeros(); K];
-            for (&c, b) in cols.iter().zip(vals) {
-                let b = b.cast::<f64>();
-                for j in 0..K {
-                    acc[j] += b * x[j][c as usize];
-                }
-            }
-            for j in 0..K {
-                ys[j][k] = acc[j];
-            }
-        }
-    });
+    restrict_batch(a, x, y);
 }
 
-/// [`restrict`] of `K` vectors, each block read and widened once.
+/// [`restrict`] of `K` vectors (any product of 6-row blocks into a coarse level), each
+/// block read and widened once.
 fn restrict_batch<const R: usize, const K: usize>(
     pt: &Blocks<f32, 6, R>,
     r: [&[SVector<f64, R>]; K],
