@@ -55,12 +55,15 @@ pub fn line(r: &UncertaintyReport, u: &str) -> String {
         ),
     };
     format!(
-        "uncertainty from {} samples ({}) in {:.2} s, {} GMRES iterations: σ up to {:.3} {u} \
-         at node {} ({x:.1}, {y:.1}, {z:.1}), mean {:.3} {u}; {model}",
+        "uncertainty from {} samples ({}) in {:.2} s, {} GMRES iterations to {:.0e} (σ × {:.3} \
+         for that stop): σ up to {:.3} {u} at node {} ({x:.1}, {y:.1}, {z:.1}), mean {:.3} \
+         {u}; {model}",
         r.samples,
         r.parts.join(", "),
         r.seconds,
         r.iterations,
+        r.tolerance,
+        r.tolerance_scale,
         r.max_sigma,
         r.max_node,
         r.mean_sigma
