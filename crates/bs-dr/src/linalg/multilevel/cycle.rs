@@ -13,7 +13,7 @@ use rayon::prelude::*;
 
 use super::blocks::Blocks;
 use super::constraints::Constraints;
-use super::levels::{Level, Levels};
+use super::levels::{Level, Levels, Matrix6f};
 use super::operator::{BatchScratch, OperatorScratch};
 use super::projector::Projector;
 use super::setup::Multilevel;
@@ -455,6 +455,18 @@ fn chebyshev6(
 ) {
     let c = Chebyshev::new(level.lambda, lower);
     let inv = &level.inv_diag;
+    chebyshev6_first(inv, &c, r, x, d);
+    let mut rho = 1.0 / c.sigma;
+    for _ in 1..degree {
+        multiply6(&level.a32, d, t);
+        let (c1, c2, next) = c.step(rho);
+        chebyshev6_step(inv, (c1, c2), r, d, t, x);
+        rho = next;
+    }
+}
+
+/// The first coarse Chebyshev term: `d = D⁻¹ r / θ`, `x += d`.
+fn chebyshev6_first(inv: &[Matrix6f], c: &Chebyshev, r: &[V6], x: &mut [V6], d: &mut [V6]) {
     d.par_iter_mut()
         .zip(r.par_iter())
         .zip(x.par_iter_mut())
@@ -464,23 +476,29 @@ fn chebyshev6(
             *di = inv[i].cast::<f64>() * ri / c.theta;
             *xi += *di;
         });
-    let mut rho = 1.0 / c.sigma;
-    for _ in 1..degree {
-        multiply6(&level.a32, d, t);
-        let (c1, c2, next) = c.step(rho);
-        r.par_iter_mut()
-            .zip(d.par_iter_mut())
-            .zip(t.par_iter())
-            .zip(x.par_iter_mut())
-            .enumerate()
-            .with_min_len(COARSE_ROWS)
-            .for_each(|(i, (((ri, di), ti), xi))| {
-                *ri -= ti;
-                *di = *di * c1 + inv[i].cast::<f64>() * *ri * c2;
-                *xi += *di;
-            });
-        rho = next;
-    }
+}
+
+/// One coarse Chebyshev step after the product `t = A d`: `r -= t`,
+/// `d = c1 d + c2 D⁻¹ r`, `x += d`.
+fn chebyshev6_step(
+    inv: &[Matrix6f],
+    (c1, c2): (f64, f64),
+    r: &mut [V6],
+    d: &mut [V6],
+    t: &[V6],
+    x: &mut [V6],
+) {
+    r.par_iter_mut()
+        .zip(d.par_iter_mut())
+        .zip(t.par_iter())
+        .zip(x.par_iter_mut())
+        .enumerate()
+        .with_min_len(COARSE_ROWS)
+        .for_each(|(i, (((ri, di), ti), xi))| {
+            *ri -= ti;
+            *di = *di * c1 + inv[i].cast::<f64>() * *ri * c2;
+            *xi += *di;
+        });
 }
 
 /// [`chebyshev6`] of `K` vectors (`here[j]`: right-hand side, solution, residual and the
@@ -494,15 +512,7 @@ fn chebyshev6_batch<const K: usize>(
     let c = Chebyshev::new(level.lambda, lower);
     let inv = &level.inv_diag;
     for [_, x, r, d, _] in here.iter_mut() {
-        d.par_iter_mut()
-            .zip(r.par_iter())
-            .zip(x.par_iter_mut())
-            .enumerate()
-            .with_min_len(COARSE_ROWS)
-            .for_each(|(i, ((di, ri), xi))| {
-                *di = inv[i].cast::<f64>() * ri / c.theta;
-                *xi += *di;
-            });
+        chebyshev6_first(inv, &c, r, x, d);
     }
     let mut rho = 1.0 / c.sigma;
     for _ in 1..degree {
@@ -510,17 +520,7 @@ fn chebyshev6_batch<const K: usize>(
         multiply6_batch(&level.a32, d, t);
         let (c1, c2, next) = c.step(rho);
         for [_, x, r, d, t] in here.iter_mut() {
-            r.par_iter_mut()
-                .zip(d.par_iter_mut())
-                .zip(t.par_iter())
-                .zip(x.par_iter_mut())
-                .enumerate()
-                .with_min_len(COARSE_ROWS)
-                .for_each(|(i, (((ri, di), ti), xi))| {
-                    *ri -= ti;
-                    *di = *di * c1 + inv[i].cast::<f64>() * *ri * c2;
-                    *xi += *di;
-                });
+            chebyshev6_step(inv, (c1, c2), r, d, t, x);
         }
         rho = next;
     }
